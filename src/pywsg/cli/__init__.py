@@ -1,0 +1,1 @@
+"""The ``wsg`` command line."""

@@ -1,0 +1,88 @@
+"""``wsg``: the WSG Commander for the terminal.
+
+Subcommands live in their own modules and are imported only when used, so ``wsg --help``
+and ``wsg decode`` stay fast. Register a new one in ``_SUBCOMMANDS``: name -> "module:attribute".
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+
+import click
+
+from .. import __version__
+
+_SUBCOMMANDS: dict[str, str] = {
+    "decode": "pywsg.cli.decode:decode",
+    "sim": "pywsg.cli.sim:sim",
+    "plc-demo": "pywsg.cli.plc:plc_demo",
+    "demo": "pywsg.cli.demo:demo",
+    # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
+}
+_COMMANDER_MODULE = "pywsg.cli.commands"
+
+DEFAULT_URL = "tcp://127.0.0.1:1000"
+
+
+class LazyGroup(click.Group):
+    """A click group that imports each subcommand's module on first use."""
+
+    def _commander(self) -> dict[str, click.Command]:
+        try:
+            module = importlib.import_module(_COMMANDER_MODULE)
+        except ModuleNotFoundError as exc:
+            if exc.name == _COMMANDER_MODULE:
+                return {}
+            raise
+        commands: dict[str, click.Command] = module.COMMANDS
+        return commands
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        names = set(super().list_commands(ctx)) | set(self._available()) | set(self._commander())
+        return sorted(names)
+
+    def _available(self) -> list[str]:
+        out = []
+        for name, target in _SUBCOMMANDS.items():
+            spec = importlib.util.find_spec(target.split(":")[0])
+            if spec is not None:
+                out.append(name)
+        return out
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name in _SUBCOMMANDS and cmd_name in self._available():
+            module_name, attr = _SUBCOMMANDS[cmd_name].split(":")
+            cmd: click.Command = getattr(importlib.import_module(module_name), attr)
+            return cmd
+        found = self._commander().get(cmd_name)
+        if found is not None:
+            return found
+        return super().get_command(ctx, cmd_name)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.option(
+    "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True,
+    help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500]?reply_port=1501, "
+    "serial:///dev/ttyUSB0?baudrate=115200 (or set WSG_URL).",
+)
+@click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
+@click.version_option(__version__, prog_name="wsg")
+@click.pass_context
+def cli(ctx: click.Context, url: str, verbose: int) -> None:
+    """Drive, simulate and inspect Weiss Robotics / SCHUNK WSG grippers.
+
+    Units everywhere: widths in mm, speeds in mm/s, accelerations in mm/s², forces in N.
+    """
+    level = logging.WARNING - 10 * min(verbose, 2)
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    ctx.ensure_object(dict)
+    ctx.obj["url"] = url
+    ctx.obj["verbose"] = verbose
+
+
+def main() -> None:
+    """Console entry point."""
+    cli(prog_name="wsg", auto_envvar_prefix=None if os.environ.get("WSG_NO_ENV") else "WSG")
