@@ -1,0 +1,320 @@
+"""WSG frames from packet captures (pcap / pcapng, read with dpkt) and from hex-dump files.
+
+TCP streams are reassembled per direction (sequence numbers; retransmissions and overlaps trimmed,
+out-of-order segments held until the gap fills) and parsed with the protocol's incremental
+:class:`~pywsg.protocol.FrameParser`, so a frame split over segments, or several frames in one
+segment, decode as they would on the gripper. UDP carries one frame per datagram.
+
+Direction: a segment to a gripper port (TCP 1000, UDP 1500 by default, or the side that received
+the SYN) is a request, one from it a reply; otherwise the decoder guesses per frame.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+import struct
+from collections.abc import Collection, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, BinaryIO, Literal
+
+import dpkt
+
+from ..protocol import Frame, FrameParser, FrameTooLarge, GarbageSkipped
+from ..protocol.crc import crc16
+from ..protocol.decode import DecodedFrame, Direction, decode_bytes, decode_frame, parse_hex
+from ..protocol.frame import OVERHEAD
+
+__all__ = [
+    "DEFAULT_PORTS", "CapturedFrame", "bytes_from_file", "frames_from_capture", "is_capture", "read_hexdump",
+]
+
+DEFAULT_PORTS = frozenset({1000, 1500, 1501})  # TCP command port, UDP listen / reply ports (SPEC-NOTES)
+_PCAP_MAGICS = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
+_PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
+_SEQ_MOD = 1 << 32
+Transport = Literal["tcp", "udp"]
+
+
+@dataclass
+class CapturedFrame:
+    """One decoded frame (or stream problem) from a capture."""
+
+    time: float  # capture timestamp, Unix seconds (of the packet that completed the frame)
+    transport: Transport
+    src: str  # "host:port"
+    dst: str
+    decoded: DecodedFrame
+
+    def to_json(self) -> dict[str, Any]:
+        return {"time": round(self.time, 6), "transport": self.transport, "src": self.src, "dst": self.dst,
+                **self.decoded.to_json()}
+
+    def header(self) -> str:
+        return f"{self.time:.6f} {self.transport.upper()} {self.src} -> {self.dst}"
+
+
+def is_capture(path: str | Path) -> bool:
+    """True when the file starts with a pcap or pcapng magic number."""
+    with open(path, "rb") as f:
+        magic = f.read(4)
+    return magic in _PCAP_MAGICS or magic == _PCAPNG_MAGIC
+
+
+_XXD = re.compile(r"^\s*[0-9a-fA-F]{4,}:\s+((?:[0-9a-fA-F]{2,4}\s?)+)")  # xxd: "00000000: aaaa aa01  ...."
+_HEXDUMP_C = re.compile(r"^\s*[0-9a-fA-F]{4,}\s+((?:[0-9a-fA-F]{2}\s+)+)\s*\|")  # hexdump -C / od-like
+
+
+def read_hexdump(text: str) -> bytes:
+    """Bytes from a hex dump: plain hex in any spacing (``AA AA``, ``AAh``, ``0xAA``, ``aaaa``),
+    ``xxd`` or ``hexdump -C`` output. ``#`` starts a comment."""
+    out = bytearray()
+    for raw_line in text.splitlines():
+        line = raw_line.split("#", 1)[0].rstrip()
+        if not line.strip():
+            continue
+        m = _HEXDUMP_C.match(line) if "|" in line else None
+        if m:
+            out += bytes.fromhex(m.group(1))
+            continue
+        m = _XXD.match(line)
+        if m:
+            out += bytes.fromhex(m.group(1).replace(" ", ""))
+            continue
+        out += parse_hex(line)
+    return bytes(out)
+
+
+def bytes_from_file(path: str | Path) -> bytes:
+    """A file's bytes: read as a hex dump when it is text, else taken as raw binary frames."""
+    data = Path(path).read_bytes()
+    try:
+        text = data.decode("ascii")
+    except UnicodeDecodeError:
+        return data
+    if "\x00" in text or (data[:3] == b"\xaa\xaa\xaa"):
+        return data
+    return read_hexdump(text)
+
+
+# --- link layers -------------------------------------------------------------------------------
+
+def _ip_from_link(linktype: int, buf: bytes) -> Any:
+    """The IPv4/IPv6 packet inside one captured link-layer frame, or None."""
+    pkt: Any
+    if linktype == dpkt.pcap.DLT_EN10MB:
+        pkt = dpkt.ethernet.Ethernet(buf).data
+    elif linktype in (dpkt.pcap.DLT_NULL, dpkt.pcap.DLT_LOOP):
+        pkt = dpkt.loopback.Loopback(buf).data
+    elif linktype == dpkt.pcap.DLT_LINUX_SLL:
+        pkt = dpkt.sll.SLL(buf).data
+    elif linktype == dpkt.pcap.DLT_LINUX_SLL2:
+        pkt = dpkt.sll2.SLL2(buf).data
+    elif linktype in (dpkt.pcap.DLT_RAW, 101, 14, dpkt.pcap.DLT_IPV4, dpkt.pcap.DLT_IPV6):
+        if not buf:
+            return None
+        pkt = dpkt.ip.IP(buf) if buf[0] >> 4 == 4 else dpkt.ip6.IP6(buf)
+    else:
+        raise ValueError(f"unsupported link type {linktype} (read: Ethernet, loopback, Linux SLL, raw IP)")
+    return pkt if isinstance(pkt, dpkt.ip.IP | dpkt.ip6.IP6) else None
+
+
+def _addr(raw: bytes) -> str:
+    return str(ipaddress.ip_address(raw))
+
+
+def _endpoint(raw: bytes, port: int) -> str:
+    host = _addr(raw)
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+
+
+def _packets(f: BinaryIO) -> tuple[int, Iterator[tuple[float, bytes]]]:
+    magic = f.read(4)
+    f.seek(0)
+    if magic == _PCAPNG_MAGIC:
+        reader: Any = dpkt.pcapng.Reader(f)
+    elif magic in _PCAP_MAGICS:
+        reader = dpkt.pcap.Reader(f)
+    else:
+        raise ValueError("not a pcap or pcapng file")
+    return int(reader.datalink()), iter(reader)
+
+
+# --- TCP reassembly and frame extraction -------------------------------------------------------
+
+@dataclass
+class _Stream:
+    """One direction of one TCP connection (or one UDP flow's datagrams)."""
+
+    src: str
+    dst: str
+    direction: Direction | None
+    next_seq: int | None = None
+    held: dict[int, tuple[float, bytes]] = field(default_factory=dict)  # out-of-order segments by seq
+    parser: FrameParser = field(default_factory=lambda: FrameParser(verify_checksum=False))
+    buf: bytearray = field(default_factory=bytearray)  # bytes fed to the parser, not yet attributed
+    seen_frame: bool = False
+    waiting: list[CapturedFrame] = field(default_factory=list)  # problems before the first frame
+
+
+def _signed_delta(a: int, b: int) -> int:
+    """a - b in 32-bit sequence space."""
+    d = (a - b) % _SEQ_MOD
+    return d - _SEQ_MOD if d >= _SEQ_MOD // 2 else d
+
+
+class _Extractor:
+    def __init__(self, ports: Collection[int]) -> None:
+        self.ports = ports
+        self.streams: dict[tuple[Transport, str, str], _Stream] = {}
+        self.servers: set[str] = set()  # endpoints that received a SYN
+
+    def stream(self, transport: Transport, src: str, sport: int, dst: str, dport: int) -> _Stream:
+        key = (transport, src, dst)
+        s = self.streams.get(key)
+        if s is None:
+            direction: Direction | None = None
+            if dst in self.servers or (dport in self.ports and sport not in self.ports):
+                direction = "request"
+            elif src in self.servers or sport in self.ports:
+                direction = "reply"
+            s = self.streams[key] = _Stream(src, dst, direction)
+            if transport == "udp" and dport == 1501:
+                s.direction = "reply"
+        return s
+
+    def tcp(self, ts: float, ip: Any, tcp: Any) -> Iterator[CapturedFrame]:
+        src, dst = _endpoint(ip.src, tcp.sport), _endpoint(ip.dst, tcp.dport)
+        syn = bool(tcp.flags & dpkt.tcp.TH_SYN)
+        if syn and not tcp.flags & dpkt.tcp.TH_ACK:
+            self.servers.add(dst)
+        s = self.stream("tcp", src, tcp.sport, dst, tcp.dport)
+        if syn:
+            s.next_seq = (tcp.seq + 1) % _SEQ_MOD
+            s.held.clear()
+        data = bytes(tcp.data)
+        if not data:
+            return
+        if s.next_seq is None:  # capture started mid-connection
+            s.next_seq = tcp.seq
+        s.held[tcp.seq] = (ts, data)
+        yield from self._drain(s, ts)
+
+    def _drain(self, s: _Stream, now: float) -> Iterator[CapturedFrame]:
+        """Feed every held segment that is now in order; frames are stamped ``now`` (their completion)."""
+        assert s.next_seq is not None
+        progressed = True
+        while progressed and s.held:
+            progressed = False
+            for seq in list(s.held):
+                _ts, data = s.held[seq]
+                delta = _signed_delta(seq, s.next_seq)
+                if delta > 0:
+                    continue  # a gap before it: wait
+                del s.held[seq]
+                if -delta >= len(data):
+                    continue  # pure retransmission
+                fresh = data[-delta:]
+                s.next_seq = (s.next_seq + len(fresh)) % _SEQ_MOD
+                yield from self._feed(s, now, fresh, "tcp")
+                progressed = True
+
+    def finish(self) -> Iterator[CapturedFrame]:
+        """End of capture: report gaps that never filled and partial frames."""
+        for (transport, _src, _dst), s in self.streams.items():
+            if s.held and s.next_seq is not None:
+                # data after a gap (lost segment): parse it anyway after a resync
+                for seq in sorted(s.held, key=lambda q: _signed_delta(q, s.next_seq or 0)):
+                    ts, data = s.held.pop(seq)
+                    gap = _signed_delta(seq, s.next_seq)
+                    if gap > 0:
+                        yield self._problem(s, ts, transport, f"{gap} byte(s) missing from the capture")
+                        s.parser.clear()
+                        s.buf.clear()
+                        s.next_seq = seq
+                    delta = _signed_delta(seq, s.next_seq)
+                    fresh = data[-delta:] if delta < 0 else data
+                    s.next_seq = (s.next_seq + len(fresh)) % _SEQ_MOD
+                    yield from self._feed(s, ts, fresh, transport)
+            rest = s.parser.pending()
+            if rest and s.seen_frame:
+                for d in decode_bytes(rest, s.direction):
+                    yield CapturedFrame(0.0, transport, s.src, s.dst, d)
+
+    def udp(self, ts: float, ip: Any, udp: Any) -> Iterator[CapturedFrame]:
+        src, dst = _endpoint(ip.src, udp.sport), _endpoint(ip.dst, udp.dport)
+        s = self.stream("udp", src, udp.sport, dst, udp.dport)
+        data = bytes(udp.data)
+        if not data:
+            return
+        decoded = decode_bytes(data, s.direction)
+        if not any(d.error is None for d in decoded) and not s.seen_frame:
+            return  # not WSG traffic
+        s.seen_frame = True
+        for d in decoded:
+            yield CapturedFrame(ts, "udp", src, dst, d)
+
+    def _problem(
+        self, s: _Stream, ts: float, transport: Transport, msg: str, raw: bytes = b""
+    ) -> CapturedFrame:
+        decoded = DecodedFrame(raw, None, "-", "unknown", None, error=msg)
+        return CapturedFrame(ts, transport, s.src, s.dst, decoded)
+
+    def _feed(self, s: _Stream, ts: float, data: bytes, transport: Transport) -> Iterator[CapturedFrame]:
+        s.buf += data
+        off = 0
+        for ev in s.parser.feed(data):
+            if isinstance(ev, Frame):
+                end = off + len(ev.payload) + OVERHEAD
+                raw = bytes(s.buf[off:end])
+                received = struct.unpack_from("<H", raw, len(raw) - 2)[0]
+                d = decode_frame(ev, s.direction, (received, crc16(raw[:-2])))
+                off = end
+                if not s.seen_frame:
+                    s.seen_frame = True
+                    yield from s.waiting
+                    s.waiting.clear()
+                yield CapturedFrame(ts, transport, s.src, s.dst, d)
+                continue
+            if isinstance(ev, GarbageSkipped):
+                problem = self._problem(s, ts, transport, ev.message, bytes(s.buf[off : off + ev.count]))
+                off += ev.count
+            elif isinstance(ev, FrameTooLarge):
+                problem = self._problem(s, ts, transport, ev.message)
+                off += 1
+            else:  # pragma: no cover - no other events without checksum verification
+                problem = self._problem(s, ts, transport, ev.message)
+            if s.seen_frame:
+                yield problem
+            elif len(s.waiting) < 16:
+                s.waiting.append(problem)
+        del s.buf[:off]
+
+
+def frames_from_capture(path: str | Path, ports: Collection[int] | None = None) -> list[CapturedFrame]:
+    """Every WSG frame in a pcap/pcapng file, in capture order.
+
+    ``ports``: gripper-side ports that decide the direction (default 1000, 1500, 1501); traffic on
+    other ports is still searched for frames. Flows without a single frame are left out, so a
+    capture of a whole network segment shows just the WSG conversation.
+    Raises ValueError for files that are not captures or use an unsupported link type.
+    """
+    ex = _Extractor(frozenset(ports) if ports is not None else DEFAULT_PORTS)
+    out: list[CapturedFrame] = []
+    with open(path, "rb") as f:
+        linktype, packets = _packets(f)
+        for ts, buf in packets:
+            try:
+                ip = _ip_from_link(linktype, buf)
+            except (dpkt.UnpackError, IndexError, struct.error):
+                continue  # damaged link header: not ours to decode
+            if ip is None:
+                continue
+            l4 = ip.data
+            if isinstance(l4, dpkt.tcp.TCP):
+                out.extend(ex.tcp(float(ts), ip, l4))
+            elif isinstance(l4, dpkt.udp.UDP):
+                out.extend(ex.udp(float(ts), ip, l4))
+    out.extend(ex.finish())
+    return out
