@@ -7,6 +7,7 @@ and ``wsg decode`` stay fast. Register a new one in ``_SUBCOMMANDS``: name -> "m
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import logging
 import os
 

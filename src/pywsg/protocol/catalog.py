@@ -7,11 +7,12 @@ tables; the driver, the virtual gripper, the decoder, the CLI and the docs all r
 
 from __future__ import annotations
 
+import builtins
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum, IntFlag
-from typing import Literal
+from typing import Literal, cast
 
 from .flags import (
     AutoUpdateFlag,
@@ -92,7 +93,7 @@ class Field:
     type: FieldType
     unit: str = ""
     description: str = ""
-    enum: type[Enum] | None = None
+    enum: builtins.type[Enum] | None = None
     max_len: int = 0
 
     @property
@@ -167,7 +168,7 @@ class Layout:
 def _to_enum(f: Field, v: int | float) -> Value:
     if f.enum is not None and isinstance(v, int):
         try:
-            return f.enum(v)  # type: ignore[no-any-return]
+            return cast(int, f.enum(v))  # the catalog's enums are IntEnum/IntFlag: still ints
         except ValueError:
             return v
     return v
@@ -237,7 +238,7 @@ class CommandSpec:
             status: Status | int = Status(code)
         except ValueError:
             status = code
-        if code != Status.E_SUCCESS or len(payload) == 2 and not self.reply:
+        if code != Status.E_SUCCESS or (len(payload) == 2 and not self.reply):
             return status, {}
         return status, self.reply_layout.decode(payload[2:])
 

@@ -106,7 +106,8 @@ class FrameParser:
 
     ``verify_checksum=False`` is the device's "CRC check disabled" setting: the checksum
     field must be present but its value is ignored. ``max_payload(command_id)`` bounds SIZE
-    per ID (default: 1 KiB for every ID).
+    per ID (default: 1 KiB for every ID). Command ID AAh cannot be received: a fourth AAh
+    is taken as garbage before the preamble.
     """
 
     __slots__ = ("_buf", "max_payload", "verify_checksum")
@@ -146,6 +147,10 @@ class FrameParser:
                     events.append(GarbageSkipped(skipped))
                 pos = n - keep
                 break
+            # In a run of AAh the preamble is its last three bytes: no command has ID AAh,
+            # so a stray AAh before a frame costs one skipped byte, not a bogus header.
+            while start + 3 < n and buf[start + 3] == 0xAA:
+                start += 1
             if start > pos:
                 events.append(GarbageSkipped(start - pos))
                 pos = start

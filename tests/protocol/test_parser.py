@@ -1,0 +1,148 @@
+"""The incremental parser: chunking, resynchronisation, caps, checksum events, datagrams."""
+
+from __future__ import annotations
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pywsg.protocol import (
+    MAX_PAYLOAD,
+    ChecksumMismatch,
+    Frame,
+    FrameParser,
+    FrameTooLarge,
+    GarbageSkipped,
+    ParseError,
+    TrailingBytes,
+    Truncated,
+    encode_frame,
+    parse_datagram,
+)
+from pywsg.protocol.catalog import request_max_payload
+
+HOMING_OK = bytes.fromhex("AAAAAA2002000000B3FD")
+
+
+def frames_of(events: list[Frame | ParseError]) -> list[Frame]:
+    return [e for e in events if isinstance(e, Frame)]
+
+
+def test_byte_by_byte() -> None:
+    p = FrameParser()
+    out: list[Frame | ParseError] = []
+    for b in HOMING_OK:
+        out += p.feed(bytes([b]))
+    assert out == [Frame(0x20, b"\x00\x00")]
+    assert p.buffered == 0
+
+
+def test_garbage_before_preamble_is_skipped_and_reported() -> None:
+    events = FrameParser().feed(b"\x01\x02\x03" + HOMING_OK)
+    assert events == [GarbageSkipped(3), Frame(0x20, b"\x00\x00")]
+
+
+def test_extra_aa_before_preamble_resynchronises() -> None:
+    # AA AA AA AA 20 ...: the first AA starts a bogus frame whose checksum fails; the real one follows
+    events = FrameParser().feed(b"\xaa\xaa" + HOMING_OK)
+    assert events == [GarbageSkipped(2), Frame(0x20, b"\x00\x00")]
+
+
+def test_bad_checksum_names_the_command() -> None:
+    bad = bytearray(encode_frame(0x21, b"\x00" * 9))
+    bad[-1] ^= 0xFF
+    events = FrameParser().feed(bytes(bad))
+    mism = [e for e in events if isinstance(e, ChecksumMismatch)]
+    assert len(mism) == 1
+    assert mism[0].command_id == 0x21
+    assert mism[0].expected == bad[-2] | ((bad[-1] ^ 0xFF) << 8)
+    assert not frames_of(events)
+    assert "21h" in mism[0].message
+
+
+def test_checksum_ignored_when_disabled() -> None:
+    bad = encode_frame(0x22)[:-2] + b"\x00\x00"
+    assert FrameParser(verify_checksum=False).feed(bad) == [Frame(0x22, b"")]
+
+
+def test_forged_size_is_rejected_without_waiting_or_allocating() -> None:
+    p = FrameParser(max_payload=request_max_payload)
+    events = p.feed(b"\xaa\xaa\xaa\x20\xff\xff")  # HOMING with SIZE 65535
+    assert events[0] == FrameTooLarge(0x20, 0xFFFF, 1)
+    assert p.buffered <= 2
+    # the stream goes on: a valid request right after is still delivered
+    assert frames_of(p.feed(encode_frame(0x20, b"\x01"))) == [Frame(0x20, b"\x01")]
+
+
+def test_size_cap_for_unknown_ids_is_1kib() -> None:
+    p = FrameParser(max_payload=request_max_payload)
+    events = p.feed(b"\xaa\xaa\xaa\x90" + (MAX_PAYLOAD + 1).to_bytes(2, "little"))
+    assert events == [FrameTooLarge(0x90, MAX_PAYLOAD + 1, MAX_PAYLOAD), GarbageSkipped(5)]
+
+
+def test_frames_inside_a_forged_header_are_not_lost() -> None:
+    # a forged header announces 20 bytes; a real frame starts inside them
+    forged = b"\xaa\xaa\xaa\x06\x14\x00"
+    events = FrameParser().feed(forged + HOMING_OK + b"\x00" * 12)
+    assert frames_of(events) == [Frame(0x20, b"\x00\x00")]
+
+
+def test_datagram_one_frame() -> None:
+    assert parse_datagram(HOMING_OK) == [Frame(0x20, b"\x00\x00")]
+
+
+def test_datagram_truncated_and_trailing() -> None:
+    assert parse_datagram(HOMING_OK[:-1]) == [Truncated(0x20, 9, 10)]
+    assert parse_datagram(b"") == []
+    events = parse_datagram(HOMING_OK + b"\x01\x02")
+    assert events[0] == Frame(0x20, b"\x00\x00")
+    assert any(isinstance(e, GarbageSkipped | TrailingBytes) for e in events[1:])
+
+
+valid_frames = st.builds(
+    lambda cid, payload: (cid, payload),
+    st.integers(0, 255).filter(lambda i: i != 0xAA),  # AAh is not a command ID
+    st.binary(max_size=64),
+)
+aa_free_garbage = st.binary(max_size=40).map(lambda b: b.replace(b"\xaa", b"\x55"))
+
+
+@settings(max_examples=200, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(aa_free_garbage, valid_frames), max_size=6), aa_free_garbage, st.data())
+def test_garbage_free_of_aa_never_loses_a_frame(pairs, tail, data) -> None:  # type: ignore[no-untyped-def]
+    stream = b"".join(g + encode_frame(cid, pl) for g, (cid, pl) in pairs) + tail
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=8)))
+    chunks = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
+    p = FrameParser()
+    got = frames_of(p.feed_all(chunks))
+    assert got == [Frame(cid, pl) for _, (cid, pl) in pairs]
+
+
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.lists(
+        st.one_of(
+            st.binary(max_size=50),
+            st.just(b"\xaa\xaa\xaa"),
+            st.builds(lambda i, n: b"\xaa\xaa\xaa" + bytes([i]) + n.to_bytes(2, "little"),
+                      st.integers(0, 255), st.integers(0, 0xFFFF)),
+        ),
+        max_size=10,
+    ),
+    valid_frames,
+    st.integers(1, 64),
+)
+def test_arbitrary_garbage_is_bounded_and_recovers(garbage_parts, frame, chunk) -> None:  # type: ignore[no-untyped-def]
+    garbage = b"".join(garbage_parts)
+    cid, payload = frame
+    good = encode_frame(cid, payload)
+    p = FrameParser(max_payload=request_max_payload)
+    seen: list[Frame | ParseError] = []
+    stream = garbage + good
+    for i in range(0, len(stream), chunk):
+        seen += p.feed(stream[i : i + chunk])
+        assert p.buffered <= MAX_PAYLOAD + 8 + chunk
+        assert all(isinstance(e, Frame | ParseError) for e in seen)
+    # once enough bytes have arrived (a forged header may still be waiting), the frame comes out
+    seen += p.feed(b"\x00" * (MAX_PAYLOAD + 8))
+    if request_max_payload(cid) >= len(payload):
+        assert Frame(cid, payload) in frames_of(seen)
