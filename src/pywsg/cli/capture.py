@@ -70,6 +70,7 @@ def read_hexdump(text: str) -> bytes:
     """Bytes from a hex dump: plain hex in any spacing (``AA AA``, ``AAh``, ``0xAA``, ``aaaa``),
     ``xxd`` or ``hexdump -C`` output. ``#`` starts a comment."""
     out = bytearray()
+    dump_c = False
     for raw_line in text.splitlines():
         line = raw_line.split("#", 1)[0].rstrip()
         if not line.strip():
@@ -77,7 +78,12 @@ def read_hexdump(text: str) -> bytes:
         m = _HEXDUMP_C.match(line) if "|" in line else None
         if m:
             out += bytes.fromhex(m.group(1))
+            dump_c = True
             continue
+        if dump_c and re.fullmatch(r"\s*[0-9a-fA-F]{7,8}", line):
+            continue  # hexdump -C ends with the total length
+        if line.strip() == "*":
+            raise ValueError("hexdump elided repeated lines ('*'): dump with hexdump -v -C")
         m = _XXD.match(line)
         if m:
             out += bytes.fromhex(m.group(1).replace(" ", ""))
@@ -318,3 +324,46 @@ def frames_from_capture(path: str | Path, ports: Collection[int] | None = None) 
                 out.extend(ex.udp(float(ts), ip, l4))
     out.extend(ex.finish())
     return out
+
+
+# --- the ``wsg decode --file`` front end -------------------------------------------------------
+
+def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = False,
+                direction: Direction | None = None) -> int:
+    """Decode a capture, hex-dump or binary file and print it; returns the exit status
+    (1 when any frame is bad, truncated or the file cannot be read)."""
+    import json
+
+    import click
+
+    try:
+        if is_capture(path):
+            captured = frames_from_capture(path, ports or None)
+            if direction is not None:
+                for c in captured:
+                    if c.decoded.command_id is not None and not c.decoded.error:
+                        c.decoded = decode_bytes(c.decoded.raw, direction)[0]
+            if as_json:
+                click.echo(json.dumps([c.to_json() for c in captured], indent=2, ensure_ascii=False))
+            else:
+                for i, c in enumerate(captured):
+                    if i:
+                        click.echo()
+                    click.echo(c.header())
+                    click.echo("\n".join(c.decoded.lines()))
+                if not captured:
+                    click.echo("no WSG frames in the capture", err=True)
+            decoded = [c.decoded for c in captured]
+        else:
+            data = bytes_from_file(path)
+            if not data:
+                click.echo(f"error: {path}: no bytes", err=True)
+                return 1
+            decoded = decode_bytes(data, direction)
+            from .decode import emit
+
+            emit(decoded, as_json)
+    except (OSError, ValueError) as exc:
+        click.echo(f"error: {path}: {exc}", err=True)
+        return 1
+    return 1 if any(d.error or d.checksum_ok is False for d in decoded) else 0

@@ -17,7 +17,17 @@ from ..protocol.decode import DecodedFrame, Direction, decode_bytes, parse_hex
     "--direction", type=click.Choice(["request", "reply"]), default=None,
     help="Treat every frame as a request (host to gripper) or reply; default: guess per frame.",
 )
-def decode(hexdata: tuple[str, ...], as_json: bool, direction: str | None) -> None:
+@click.option(
+    "-f", "--file", "path", type=click.Path(exists=True, dir_okay=False),
+    help="Decode a file instead: pcap/pcapng capture (TCP streams reassembled, UDP datagrams), "
+    "hex dump (plain hex, xxd, hexdump -C) or raw binary frames.",
+)
+@click.option(
+    "--port", "ports", type=int, multiple=True, metavar="PORT",
+    help="Gripper-side port in a capture (repeatable; default 1000, 1500, 1501): sets the direction.",
+)
+def decode(hexdata: tuple[str, ...], as_json: bool, direction: str | None, path: str | None,
+           ports: tuple[int, ...]) -> None:
     """Decode frames given as hex bytes.
 
     HEXDATA may hold several frames and any spacing: "AA AA AA 20 02 00 00 00 B3 FD",
@@ -26,6 +36,10 @@ def decode(hexdata: tuple[str, ...], as_json: bool, direction: str | None) -> No
     with units, the status name for replies, and whether the checksum is right (with the
     expected value when not). Exit status 1 when any frame is bad or truncated.
     """
+    if path is not None:  # file and capture input: pywsg.cli.capture (issue 5)
+        from .capture import decode_file
+
+        sys.exit(decode_file(path, ports, as_json, direction))  # type: ignore[arg-type]
     text = " ".join(hexdata) if hexdata else sys.stdin.read()
     try:
         data = parse_hex(text)

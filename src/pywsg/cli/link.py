@@ -1,0 +1,151 @@
+"""A raw frame link for the Custom Command Editor and the session log: bytes in, frames out.
+
+``wsg send`` must put the user's bytes on the wire exactly as composed (even payloads the driver
+would refuse), so it talks through this thin blocking link rather than the typed driver. Every
+frame sent and received goes to the :class:`~pywsg.cli.commlog.CommLog` when one is given.
+Over TCP the link announces its disconnect (07h) before closing, so leaving does not raise a
+FAST STOP on the gripper (command manual 1.4.2, 3.1.2).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import time
+from collections import deque
+from types import TracebackType
+from typing import Any
+
+from ..client.url import Endpoint, parse_url
+from ..protocol import Command, Frame, FrameParser, Status
+from ..protocol.parser import ChecksumMismatch, Event, ParseError, parse_datagram
+from .commlog import CommLog
+
+__all__ = ["Link", "LinkError"]
+
+
+class LinkError(OSError):
+    """The link could not be opened or broke."""
+
+
+class Link:
+    """Blocking link to a gripper at ``url`` (tcp://, udp://, serial://)."""
+
+    def __init__(self, url: str, log: CommLog | None = None, connect_timeout: float = 3.0) -> None:
+        self.endpoint: Endpoint = parse_url(url)
+        self.log = log
+        self._parser = FrameParser(verify_checksum=True)
+        self._queue: deque[Event] = deque()
+        self._sock: socket.socket | None = None
+        self._serial: Any = None
+        ep = self.endpoint
+        try:
+            if ep.scheme == "tcp":
+                self._sock = socket.create_connection((ep.host, ep.port), timeout=connect_timeout)
+                self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            elif ep.scheme == "udp":
+                family = socket.AF_INET6 if ":" in ep.host else socket.AF_INET
+                self._sock = socket.socket(family, socket.SOCK_DGRAM)
+                self._sock.bind((ep.bind or "", ep.reply_port))
+                if ep.reply_port == 0:  # replies come back to our source port
+                    self._sock.connect((ep.host, ep.port))
+            else:
+                import serial
+
+                self._serial = serial.serial_for_url(ep.path, baudrate=ep.baudrate, timeout=0.05)
+        except OSError as exc:
+            raise LinkError(exc.errno or 0, f"cannot open {ep}: {exc.strerror or exc}") from None
+
+    # -- sending ---------------------------------------------------------------------------------
+    def send_frame(self, frame: Frame) -> bytes:
+        return self.send_raw(frame.encode(), frame)
+
+    def send_raw(self, wire: bytes, frame: Frame | None = None) -> bytes:
+        """Send ``wire`` unchanged (``frame``: its decoded form, for the log)."""
+        if self.log is not None and frame is not None:
+            self.log.record("tx", frame)
+        try:
+            if self._serial is not None:
+                self._serial.write(wire)
+                self._serial.flush()
+            elif self.endpoint.scheme == "udp":
+                assert self._sock is not None
+                self._sock.sendto(wire, (self.endpoint.host, self.endpoint.port))
+            else:
+                assert self._sock is not None
+                self._sock.sendall(wire)
+        except OSError as exc:
+            raise LinkError(exc.errno or 0, f"send to {self.endpoint} failed: {exc}") from None
+        return wire
+
+    # -- receiving -------------------------------------------------------------------------------
+    def _read(self, timeout: float) -> list[Event]:
+        if self._serial is not None:
+            deadline = time.monotonic() + timeout
+            while True:
+                data = self._serial.read(4096)
+                if data or time.monotonic() >= deadline:
+                    return self._parser.feed(data) if data else []
+        assert self._sock is not None
+        self._sock.settimeout(max(timeout, 1e-4))
+        try:
+            if self.endpoint.scheme == "udp":
+                data, _addr = self._sock.recvfrom(65536)
+                return parse_datagram(data)
+            data = self._sock.recv(65536)
+        except (TimeoutError, BlockingIOError):
+            return []
+        except OSError as exc:
+            raise LinkError(exc.errno or 0, f"receive from {self.endpoint} failed: {exc}") from None
+        if not data:
+            raise LinkError(0, f"{self.endpoint} closed the connection")
+        return self._parser.feed(data)
+
+    def next_event(self, timeout: float) -> Frame | ParseError | None:
+        """The next received frame or parse problem, or None after ``timeout`` seconds."""
+        deadline = time.monotonic() + timeout
+        while not self._queue:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            for ev in self._read(left):
+                if isinstance(ev, Frame) and self.log is not None:
+                    self.log.record("rx", ev)
+                self._queue.append(ev)
+        return self._queue.popleft()
+
+    def next_frame(self, timeout: float) -> Frame | None:
+        """Like :meth:`next_event` but skipping parse problems (a checksum error raises)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            ev = self.next_event(max(0.0, deadline - time.monotonic()))
+            if ev is None or isinstance(ev, Frame):
+                return ev
+            if isinstance(ev, ChecksumMismatch):
+                raise LinkError(0, f"reply with a bad checksum: {ev.message}")
+
+    # -- closing ---------------------------------------------------------------------------------
+    def close(self, announce: bool = True) -> None:
+        """Close; over TCP announce the disconnect first (07h) so the gripper keeps calm."""
+        try:
+            if announce and self.endpoint.scheme == "tcp" and self._sock is not None:
+                with contextlib.suppress(OSError):
+                    self.send_frame(Frame(Command.DISCONNECT))
+                    deadline = time.monotonic() + 1.0
+                    while (left := deadline - time.monotonic()) > 0:
+                        f = self.next_frame(left)
+                        if f is None or (f.command_id == Command.DISCONNECT and f.status != Status.E_CMD_PENDING):
+                            break
+        finally:
+            if self._sock is not None:
+                self._sock.close()
+                self._sock = None
+            if self._serial is not None:
+                self._serial.close()
+                self._serial = None
+
+    def __enter__(self) -> Link:
+        return self
+
+    def __exit__(self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+        self.close()
