@@ -1,0 +1,345 @@
+"""The fieldbus controller: turns output-image updates into gripper commands (002 §3.1, §4).
+
+Sans-IO. It drives the virtual gripper through its own device session ("fieldbus") with ordinary
+request frames (20h Homing, 21h Pre-position, 22h Stop, 23h FAST STOP, 24h Ack, 25h Grip, 26h Release,
+32h Set Force Limit), so every rule of the binary protocol holds for the bus too; final replies come
+back through the session's ``deliver`` callback. Jog mode uses ``gripper.jog()``.
+
+Rules (manual, SPEC-NOTES and the decisions in docs/fieldbus.md):
+
+- A command fires on a 0→1 edge of its CMDFLAGS bit; if several rise in one update the lowest bit
+  wins. A rising FASTSTOP is never lost: it is executed even when a lower bit rises with it.
+- JOG+ / JOG- are levels: 10 → positive, 01 → negative, 11 → stop, 00 after jogging → stop.
+  SPEED 0 means the minimum speed; FORCELIMIT 0 keeps the current force limit (jog only).
+- While FASTSTOP or STOP/ACK is held at 1, motion commands are not started (STATUS = E_ACCESS_DENIED).
+- STOP/ACK stops a motion (22h), or acknowledges a FAST STOP (24h "ack", then 22h so the gripper
+  state is IDLE) — only once FASTSTOP has been reset to 0, else STATUS = E_ACCESS_DENIED.
+- A parameter beyond the system limits used by a motion command raises FAST STOP (STATUS =
+  E_RANGE_ERROR); changing WIDTH/SPEED/FORCELIMIT while SF_MOVING (not jogging) raises FAST STOP
+  (STATUS = E_CMD_ABORTED).
+- STATUS CODE holds the last command's result: E_CMD_PENDING while it runs, then its final status.
+- IF is copied to the gripper's script flags on every update; OF is read from them.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from ..protocol import CATALOG, Command, Frame, GripperState, Status, SystemFlag
+from .image import JOG, MOTION_COMMANDS, CmdFlag, InputImage, OutputImage, force_scale
+
+log = logging.getLogger(__name__)
+
+
+class SnapshotLike(Protocol):
+    width: float
+    force: float
+    gripper_state: GripperState
+    flags: SystemFlag
+
+
+class FieldbusDevice(Protocol):
+    """What the controller needs from :class:`pywsg.device.VirtualGripper`."""
+
+    def open_session(self, kind: str, peer: str = ..., deliver: Callable[[Frame], None] | None = ...) -> Any: ...
+
+    def close_session(self, session: Any) -> None: ...
+
+    def handle_frame(self, session: Any, frame: Frame) -> list[Frame]: ...
+
+    def snapshot(self) -> Any: ...
+
+    def jog(self, direction: int, speed: float, force: float) -> Any: ...
+
+
+@dataclass(frozen=True)
+class Limits:
+    """System limits used to check bus parameters (53h Get System Limits): mm, mm/s, N."""
+
+    stroke: float
+    min_speed: float
+    max_speed: float
+    min_force: float
+    nom_force: float
+    ovr_force: float
+
+
+@dataclass(frozen=True)
+class Event:
+    """One thing the controller did, for logs and monitors."""
+
+    time: float
+    text: str
+
+
+def _model_name(gripper: Any) -> str:
+    for attr in ("model_name", "model"):
+        value = getattr(gripper, attr, None)
+        if isinstance(value, str):
+            return value
+        name = getattr(value, "name", None)
+        if isinstance(name, str):
+            return name
+    return "wsg50"
+
+
+class FieldbusController:
+    """Fieldbus interface of one virtual gripper.
+
+    ``write_outputs(image)`` applies a new output image (as a bus cycle would); ``input_image()``
+    computes the input image fresh from the gripper's state; ``output_image`` is the last image
+    written. ``model`` ("wsg50", "wsg70", ...) selects the force unit; by default it is taken from
+    the gripper.
+    """
+
+    def __init__(self, gripper: FieldbusDevice, model: str | None = None) -> None:
+        self.gripper = gripper
+        self.model = (model or _model_name(gripper)).lower()
+        self.force_scale = force_scale(self.model)
+        self.output_image = OutputImage()
+        self.status: int = int(Status.E_SUCCESS)
+        self.events: list[Event] = []
+        self._pending: int | None = None   # command ID whose final reply sets STATUS
+        self._jog_dir = 0
+        self._jog_done = False
+        self._listeners: list[Callable[[Event], None]] = []
+        self.session = gripper.open_session("fieldbus", peer="fieldbus", deliver=self._deliver)
+        self.limits = self._read_limits()
+
+    # --- public --------------------------------------------------------------------------------
+    @property
+    def output_bytes(self) -> bytes:
+        """The 8 output bytes last written by the PLC."""
+        return self.output_image.pack()
+
+    def input_image(self) -> InputImage:
+        """The input image now (SYSSTATE, WIDTH, FORCE fresh on every call)."""
+        snap = self.gripper.snapshot()
+        if self._jog_dir and not self._jog_done and not snap.flags & SystemFlag.SF_MOVING \
+                and snap.gripper_state != GripperState.RELEASING:
+            # Jog reached an end position (or stopped on its own): report its result.
+            self._jog_done = True
+            self.status = int(Status.E_SUCCESS)
+        of_flags = int(getattr(self.gripper, "script_of", 0)) & 0xFF
+        return InputImage.from_state(snap.gripper_state, SystemFlag(int(snap.flags)), float(snap.width),
+                                     float(snap.force), self.status, of_flags, self.model)
+
+    def input_bytes(self) -> bytes:
+        """The 12 input bytes now."""
+        return self.input_image().pack()
+
+    def add_listener(self, fn: Callable[[Event], None]) -> None:
+        """Call ``fn(event)`` for every command the controller issues."""
+        self._listeners.append(fn)
+
+    def close(self) -> None:
+        """Close the controller's device session (stops a running jog)."""
+        if self._jog_dir:
+            self.gripper.jog(0, 0.0, 0.0)
+            self._jog_dir = 0
+        self.gripper.close_session(self.session)
+
+    def write_outputs(self, image: OutputImage) -> None:
+        """Apply a new output image: edges, jog levels, FAST STOP rules."""
+        old, new = self.output_image, image
+        self.output_image = new
+        if hasattr(self.gripper, "script_if"):
+            self.gripper.script_if = new.if_flags
+        rising = CmdFlag(int(new.cmdflags) & ~int(old.cmdflags) & 0x3F)
+        params_changed = (new.width, new.speed, new.force_limit) != (old.width, old.speed, old.force_limit)
+        held = new.cmdflags & (CmdFlag.STOP_ACK | CmdFlag.FASTSTOP)
+
+        if params_changed and not self._jog_dir:
+            snap = self.gripper.snapshot()
+            if snap.flags & SystemFlag.SF_MOVING:
+                self._raise_fast_stop("parameter changed while MOVING", Status.E_CMD_ABORTED)
+                self._update_jog(new, blocked=True)
+                return
+
+        if rising & CmdFlag.FASTSTOP:
+            # Safety first: a FASTSTOP edge is executed even if a lower bit rose with it.
+            self._raise_fast_stop("FASTSTOP flag", Status.E_SUCCESS)
+        elif rising:
+            lowest = CmdFlag(int(rising) & -int(rising))
+            if lowest == CmdFlag.STOP_ACK:
+                self._stop_ack(new)
+            elif lowest & MOTION_COMMANDS:
+                if held:
+                    self._emit(f"{lowest.name} ignored: STOP/ACK or FASTSTOP held at 1")
+                    self._set_status(Status.E_ACCESS_DENIED)
+                else:
+                    self._motion(lowest, new)
+        self._update_jog(new, blocked=bool(held))
+
+    # --- commands ------------------------------------------------------------------------------
+    def _motion(self, cmd: CmdFlag, out: OutputImage) -> None:
+        width, speed, force = out.width / 100, out.speed / 100, out.force_limit / self.force_scale
+        lim = self.limits
+        max_force = self._max_force()
+        problem = None
+        if cmd in (CmdFlag.MOVE, CmdFlag.GRIP, CmdFlag.RELEASE):
+            if not 0 <= width <= lim.stroke:
+                problem = f"WIDTH {width:.2f} mm outside 0..{lim.stroke:g} mm"
+            elif not lim.min_speed <= speed <= lim.max_speed:
+                problem = f"SPEED {speed:.2f} mm/s outside {lim.min_speed:g}..{lim.max_speed:g} mm/s"
+        if problem is None and cmd == CmdFlag.GRIP and not lim.min_force <= force <= max_force:
+            problem = f"FORCELIMIT {force:g} N outside {lim.min_force:g}..{max_force:g} N"
+        if problem is None and cmd == CmdFlag.MOVE and out.force_limit and \
+                not lim.min_force <= force <= max_force:
+            problem = f"FORCELIMIT {force:g} N outside {lim.min_force:g}..{max_force:g} N"
+        if problem is not None:
+            self._raise_fast_stop(f"{cmd.name}: {problem}", Status.E_RANGE_ERROR)
+            return
+
+        frames: list[tuple[Command, dict[str, Any]]] = []
+        if cmd == CmdFlag.HOMING:
+            frames.append((Command.HOMING, {"direction": 0}))
+        elif cmd == CmdFlag.MOVE:
+            if out.force_limit:
+                frames.append((Command.SET_FORCE_LIMIT, {"force": force}))
+            frames.append((Command.PREPOSITION, {"flags": 0, "width": width, "speed": speed}))
+        elif cmd == CmdFlag.GRIP:
+            frames.append((Command.SET_FORCE_LIMIT, {"force": force}))
+            frames.append((Command.GRIP_PART, {"width": width, "speed": speed}))
+        elif cmd == CmdFlag.RELEASE:
+            frames.append((Command.RELEASE_PART, {"width": width, "speed": speed}))
+        self._emit(f"{cmd.name} width={width:.2f} mm speed={speed:.2f} mm/s force={force:g} N")
+        self._run(frames)
+
+    def _stop_ack(self, out: OutputImage) -> None:
+        snap = self.gripper.snapshot()
+        if snap.flags & SystemFlag.SF_FAST_STOP:
+            if out.cmdflags & CmdFlag.FASTSTOP:
+                self._emit("STOP/ACK ignored: reset FASTSTOP before acknowledging")
+                self._set_status(Status.E_ACCESS_DENIED)
+                return
+            self._emit("STOP/ACK: acknowledge FAST STOP")
+            if not self._run([(Command.ACK_FAST_STOP, {"key": "ack"})]):
+                return
+        else:
+            self._emit("STOP/ACK: stop")
+        self._stop_jog()
+        self._run([(Command.STOP, {})])
+
+    def _raise_fast_stop(self, reason: str, status: Status) -> None:
+        self._emit(f"FAST STOP: {reason}")
+        self._stop_jog()
+        self._run([(Command.FAST_STOP, {})])
+        self._set_status(status)
+
+    def _update_jog(self, out: OutputImage, blocked: bool) -> None:
+        bits = out.cmdflags & JOG
+        direction = 1 if bits == CmdFlag.JOG_PLUS else -1 if bits == CmdFlag.JOG_MINUS else 0
+        if direction == self._jog_dir:
+            if direction and (out.speed, out.force_limit) != (self._jog_params):
+                self._start_jog(direction, out)   # hand wheel: new speed / force while jogging
+            return
+        if direction == 0:
+            self._emit("JOG stop" if bits else "JOG mode left")
+            self._stop_jog()
+            self._set_status(Status.E_SUCCESS)
+            return
+        if blocked:
+            self._stop_jog()
+            self._set_status(Status.E_ACCESS_DENIED)
+            return
+        snap = self.gripper.snapshot()
+        if snap.flags & SystemFlag.SF_FAST_STOP:
+            self._stop_jog()
+            self._set_status(Status.E_ACCESS_DENIED)
+            return
+        speed, force = out.speed / 100, out.force_limit / self.force_scale
+        if speed > self.limits.max_speed or force > self._max_force() or force < 0:
+            self._raise_fast_stop(f"JOG: SPEED {speed:g} mm/s / FORCELIMIT {force:g} N beyond limits",
+                                  Status.E_RANGE_ERROR)
+            return
+        self._start_jog(direction, out)
+
+    _jog_params: tuple[int, int] = (0, 0)
+
+    def _start_jog(self, direction: int, out: OutputImage) -> None:
+        speed = max(out.speed / 100, self.limits.min_speed)     # SPEED 0: minimum speed (002 §4.7)
+        force = out.force_limit / self.force_scale if out.force_limit else self._current_force_limit()
+        speed = min(speed, self.limits.max_speed)
+        force = min(force, self._max_force())
+        self._emit(f"JOG{'+' if direction > 0 else '-'} speed={speed:.2f} mm/s force={force:g} N")
+        self._pending = None
+        try:
+            self.gripper.jog(direction, speed, force)
+        except Exception as exc:  # the device refuses (e.g. not referenced): report, don't crash the bus
+            log.info("jog refused: %s", exc)
+            status = getattr(exc, "status", Status.E_ACCESS_DENIED)
+            self._set_status(int(status))
+            self._jog_dir = 0
+            return
+        self._jog_dir = direction
+        self._jog_done = False
+        self._jog_params = (out.speed, out.force_limit)
+        self._set_status(Status.E_CMD_PENDING)
+
+    def _stop_jog(self) -> None:
+        if self._jog_dir:
+            self._jog_dir = 0
+            self.gripper.jog(0, 0.0, 0.0)
+
+    # --- helpers -------------------------------------------------------------------------------
+    def _run(self, frames: list[tuple[Command, dict[str, Any]]]) -> bool:
+        """Send request frames in order; STATUS = the last one's immediate status. False on error."""
+        self._pending = None
+        for cmd, values in frames:
+            frame = Frame(int(cmd), CATALOG[cmd].encode_request(values))
+            replies = self.gripper.handle_frame(self.session, frame)
+            status = int(Status.E_SUCCESS)
+            for reply in replies:
+                if reply.command_id == int(cmd):
+                    status = int(reply.status)
+            if status == Status.E_CMD_PENDING:
+                self._pending = int(cmd)
+            self._set_status(status)
+            if status not in (Status.E_SUCCESS, Status.E_CMD_PENDING):
+                self._emit(f"{CATALOG[cmd].name} -> {Status.describe(status)}")
+                return False
+        return True
+
+    def _deliver(self, frame: Frame) -> None:
+        """Deferred frames of the fieldbus session: final replies of motions."""
+        if self._pending is not None and frame.command_id == self._pending:
+            status = int(frame.status)
+            if status != Status.E_CMD_PENDING:
+                self._pending = None
+                self._set_status(status)
+                self._emit(f"{CATALOG[frame.command_id].name} finished: {Status.describe(status)}")
+
+    def _set_status(self, status: Status | int) -> None:
+        self.status = int(status)
+
+    def _emit(self, text: str) -> None:
+        now = float(getattr(self.gripper.snapshot(), "time", 0.0))
+        event = Event(now, text)
+        self.events.append(event)
+        del self.events[:-200]
+        log.debug("fieldbus: %s", text)
+        for fn in list(self._listeners):
+            fn(event)
+
+    def _max_force(self) -> float:
+        snap = self.gripper.snapshot()
+        if snap.flags & SystemFlag.SF_OVERDRIVE_MODE:
+            return self.limits.ovr_force
+        return self.limits.nom_force
+
+    def _current_force_limit(self) -> float:
+        value = getattr(self.gripper.snapshot(), "force_limit", None)
+        return float(value) if value else self.limits.nom_force
+
+    def _read_limits(self) -> Limits:
+        frame = Frame(int(Command.GET_SYSTEM_LIMITS), b"")
+        for reply in self.gripper.handle_frame(self.session, frame):
+            if reply.command_id == Command.GET_SYSTEM_LIMITS and reply.status == Status.E_SUCCESS:
+                _, v = CATALOG[Command.GET_SYSTEM_LIMITS].decode_reply(reply.payload)
+                return Limits(float(v["stroke"]), float(v["min_speed"]), float(v["max_speed"]),
+                              float(v["min_force"]), float(v["nom_force"]), float(v["ovr_force"]))
+        raise RuntimeError("the gripper did not answer 53h Get System Limits")
