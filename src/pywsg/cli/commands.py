@@ -1,0 +1,15 @@
+"""The commander's subcommands (issue 5), looked up by ``wsg`` through :data:`COMMANDS`.
+
+Only click is imported here; each command imports the driver, rich or dpkt when it runs, so
+``wsg --help`` and shell completion stay fast.
+"""
+
+from __future__ import annotations
+
+import click
+
+from .send import send
+
+COMMANDS: dict[str, click.Command] = {
+    "send": send,
+}

@@ -1,0 +1,174 @@
+"""Shared plumbing of the commander subcommands: common options, output, errors, the driver.
+
+Exit status: 0 success; 1 the gripper answered an error status (name and meaning on stderr);
+2 usage error (bad option, bad payload syntax); 3 no usable answer (connection refused or lost,
+timeout, corrupted reply).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, NoReturn, TypeVar
+
+import click
+
+from ..protocol import Status, StatusError
+from .commlog import CommLog
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+EXIT_STATUS = 1
+EXIT_USAGE = 2
+EXIT_CONNECTION = 3
+
+UNITS: dict[str, str] = {
+    "width": "mm", "speed": "mm/s", "force": "N", "temperature": "°C", "acceleration": "mm/s²",
+    "stroke": "mm", "min_speed": "mm/s", "max_speed": "mm/s", "min_acceleration": "mm/s²",
+    "max_acceleration": "mm/s²", "min_force": "N", "nominal_force": "N", "overdrive_force": "N",
+    "force_limit": "N", "minus": "mm", "plus": "mm", "data_size": "bytes",
+}
+
+
+# -- values ------------------------------------------------------------------------------------
+
+def jsonable(value: Any) -> Any:
+    """Plain JSON types: flags -> list of names, enums -> name, dataclasses -> dicts, bytes -> hex."""
+    if isinstance(value, enum.IntFlag):
+        return [m.name for m in type(value) if m.value and m.name and value & m and m.value & (m.value - 1) == 0]
+    if isinstance(value, enum.Enum):
+        return value.name
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        for name in ("firmware_version",):  # computed properties worth showing
+            if hasattr(value, name):
+                out[name] = getattr(value, name)
+        return out
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, bytes):
+        return value.hex(" ").upper()
+    if isinstance(value, float):
+        return round(value, 4)
+    return value
+
+
+def human(key: str, value: Any) -> str:
+    """``value`` with its unit for people."""
+    if isinstance(value, enum.IntFlag):
+        names = jsonable(value)
+        return ", ".join(names) if names else "(none)"
+    if isinstance(value, enum.Enum):
+        return f"{value.name} ({value.value})"
+    if isinstance(value, float):
+        unit = UNITS.get(key, "")
+        return f"{value:.2f} {unit}".rstrip()
+    if isinstance(value, bytes):
+        return value.hex(" ").upper() or "(empty)"
+    if value is None:
+        return "(not set)"
+    unit = UNITS.get(key, "")
+    return f"{value} {unit}".rstrip() if isinstance(value, int) and unit else str(value)
+
+
+def rows_of(value: Any) -> list[tuple[str, str]]:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        rows = [(f.name, human(f.name, getattr(value, f.name))) for f in dataclasses.fields(value)]
+        if hasattr(value, "firmware_version"):
+            rows.append(("firmware_version", str(value.firmware_version)))
+        return rows
+    if isinstance(value, Mapping):
+        return [(str(k), human(str(k), v)) for k, v in value.items()]
+    return []
+
+
+def emit(value: Any, as_json: bool, key: str = "value") -> None:
+    """Print a result: a table of name/value rows, one value, or JSON."""
+    if as_json:
+        data = jsonable(value)
+        if not isinstance(data, dict):
+            data = {key: data}
+        click.echo(json.dumps(data, ensure_ascii=False))
+        return
+    rows = rows_of(value)
+    if rows:
+        width = max(len(k) for k, _ in rows)
+        for k, v in rows:
+            click.echo(f"{k:<{width}}  {v}")
+    else:
+        click.echo(human(key, value))
+
+
+# -- errors ------------------------------------------------------------------------------------
+
+def fail(exc: BaseException, as_json: bool = False) -> NoReturn:
+    """Report ``exc`` on stderr (JSON on stdout too with --json) and exit with its status."""
+    code = EXIT_CONNECTION
+    info: dict[str, Any] = {"ok": False, "error": str(exc)}
+    if isinstance(exc, StatusError):
+        status = exc.status
+        name = status.name if isinstance(status, Status) else f"UNKNOWN_STATUS_{int(status)}"
+        meaning = status.description if isinstance(status, Status) else "unknown status code"
+        from_device = getattr(exc, "from_device", True)
+        code = EXIT_STATUS if from_device else EXIT_CONNECTION
+        info.update(status=name, status_code=int(status), meaning=meaning, from_device=from_device,
+                    command_id=exc.command_id)
+        flags = getattr(exc, "flags", None)
+        if flags is not None:
+            info["flags"] = jsonable(flags)
+        message = str(exc)
+        if name not in message:
+            message = f"{name} ({int(status)}): {meaning} - {message}"
+    else:
+        message = str(exc) or type(exc).__name__
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+    click.echo(f"error: {message}", err=True)
+    sys.exit(code)
+
+
+# -- common options ----------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class Options:
+    """What every commander subcommand accepts."""
+
+    url: str
+    as_json: bool
+    log: CommLog | None
+    timeout: float
+
+
+def common_options(f: F) -> F:
+    """``--json``, ``--log``, ``--log-file``, ``--timeout`` (in that order in --help)."""
+    f = click.option("--timeout", type=float, default=10.0, show_default=True, metavar="SECONDS",
+                     help="How long to wait for the gripper's answer (motions: for the final reply).")(f)
+    f = click.option("--log-file", type=click.Path(dir_okay=False, writable=True), metavar="PATH",
+                     help="Append the communication log as JSON lines to PATH (read it with `wsg log PATH`).")(f)
+    f = click.option("--log", "log_flag", is_flag=True,
+                     help="Print the communication log (time, TX/RX, hex, decoded frame) on stderr.")(f)
+    f = click.option("--json", "as_json", is_flag=True, help="Machine-readable output (one JSON object).")(f)
+    return f
+
+
+def options(ctx: click.Context, as_json: bool, log_flag: bool, log_file: str | None, timeout: float) -> Options:
+    log: CommLog | None = None
+    if log_flag or log_file:
+        jsonl = None
+        if log_file:
+            jsonl = Path(log_file).open("a", encoding="utf-8")  # noqa: SIM115 - closed at exit
+            ctx.call_on_close(jsonl.close)
+        log = CommLog(text=sys.stderr if log_flag else None, jsonl=jsonl)
+    obj = ctx.find_root().obj or {}
+    url = obj.get("url") or "tcp://127.0.0.1:1000"
+    return Options(url, as_json, log, timeout)
+
+
+def pop_common(kw: dict[str, Any]) -> tuple[bool, bool, str | None, float]:
+    return kw.pop("as_json"), kw.pop("log_flag"), kw.pop("log_file"), kw.pop("timeout")
