@@ -33,7 +33,7 @@ def _line(tag: str, frame_hex: str, text: str) -> str:
               help="Keep printing received frames this long after the answer (auto-update packets).")
 @common_options
 @click.pass_context
-def send(ctx: click.Context, command_id: str, payload: tuple[str, ...], dry_run: bool, follow: float,
+def send(ctx: click.Context, /, command_id: str, payload: tuple[str, ...], dry_run: bool, follow: float,
          **kw: Any) -> None:
     """Send one command composed in the WSG Commander's Custom Command Editor syntax.
 
