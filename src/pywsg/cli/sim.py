@@ -1,0 +1,131 @@
+"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP and the web."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from pathlib import Path
+from typing import Any
+
+import click
+
+MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
+
+
+def _port(value: int) -> int | None:
+    """CLI ports: 0 turns the interface off."""
+    return None if value == 0 else value
+
+
+def _serial(value: str) -> str | None:
+    return None if value.lower() in ("0", "off", "none", "") else value
+
+
+def _run(coro: Any, use_uvloop: bool | None) -> Any:
+    """Run with uvloop when asked (or by default when installed), else stock asyncio."""
+    if use_uvloop is not False:
+        try:
+            import uvloop
+        except ImportError:
+            if use_uvloop:
+                raise click.UsageError("--uvloop needs uvloop: pip install 'pywsg[fast]'") from None
+        else:
+            return uvloop.run(coro)
+    return asyncio.run(coro)
+
+
+@click.command("sim")
+@click.option("--model", type=click.Choice(MODELS), default="wsg50", show_default=True, help="Device profile.")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (0.0.0.0: all).")
+@click.option("--tcp-port", type=click.IntRange(0, 65535), default=1000, show_default=True,
+              help="TCP command interface (0: off).")
+@click.option("--udp-port", type=click.IntRange(0, 65535), default=1500, show_default=True,
+              help="UDP command interface, local port (0: off).")
+@click.option("--udp-reply-port", type=click.IntRange(0, 65535), default=1501, show_default=True,
+              help="UDP replies go to the client's address on this port (0: the client's own port).")
+@click.option("--serial", "serial_port", default="pty", show_default=True, metavar="pty|PATH|off",
+              help="Serial interface: a new pseudo-terminal, an existing serial device, or off.")
+@click.option("--baudrate", type=int, default=115200, show_default=True, help="Baud rate for a serial PATH.")
+@click.option("--can", "can_channel", default=None, metavar="CHANNEL",
+              help="CAN interface on this python-can channel (inferred mapping, see docs/sim.md).")
+@click.option("--can-interface", default="virtual", show_default=True, help="python-can interface.")
+@click.option("--modbus-port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="Modbus/TCP fieldbus interface (0: off; the standard 502 needs root).")
+@click.option("--web-port", type=click.IntRange(0, 65535), default=8080, show_default=True,
+              help="Web interface (0: off).")
+@click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Settings file (JSON): loaded at start if it exists, saved on exit.")
+@click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
+              help="Run N independent grippers on consecutive ports.")
+@click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
+              help="Use uvloop (default: when installed, from pywsg[fast]).")
+@click.option("-v", "--verbose", count=True, help="Log every command (-v) and more (-vv).")
+@click.pass_context
+def sim(
+    ctx: click.Context,
+    model: str,
+    host: str,
+    tcp_port: int,
+    udp_port: int,
+    udp_reply_port: int,
+    serial_port: str,
+    baudrate: int,
+    can_channel: str | None,
+    can_interface: str,
+    modbus_port: int,
+    web_port: int,
+    settings_file: Path | None,
+    count: int,
+    use_uvloop: bool | None,
+    verbose: int,
+) -> None:
+    """Run virtual grippers that any WSG client can connect to.
+
+    Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
+    sockets closed). With --count N, gripper i listens on each given port + i.
+    """
+    from ..server.sim import SimError, SimOptions, run_sim
+
+    parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
+    level = max(verbose, parent_verbose)
+    if level:
+        logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
+        logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
+
+    web = _port(web_port)
+    if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
+        import importlib.util
+
+        try:
+            found = importlib.util.find_spec("pywsg.web.app") is not None
+        except ImportError:
+            found = False
+        if not found:
+            click.echo("web interface not available (pip install 'pywsg[web]'); running without it", err=True)
+            web = None
+
+    options = SimOptions(
+        model=model,
+        host=host,
+        tcp_port=_port(tcp_port),
+        udp_port=_port(udp_port),
+        udp_reply_port=_port(udp_reply_port),
+        serial=_serial(serial_port),
+        baudrate=baudrate,
+        can_channel=can_channel,
+        can_interface=can_interface,
+        modbus_port=_port(modbus_port),
+        web_port=web,
+        settings=settings_file,
+        count=count,
+    )
+
+    def echo(line: str) -> None:
+        click.echo(line)
+
+    try:
+        _run(run_sim(options, echo=echo), use_uvloop)
+    except SimError as exc:
+        raise click.ClickException(str(exc)) from None
+    except KeyboardInterrupt:  # signal handlers cover the loop; this covers start-up
+        pass

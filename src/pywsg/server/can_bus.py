@@ -1,0 +1,98 @@
+"""CAN command interface — **inferred**: the WSG manuals do not specify a CAN mapping.
+
+Design (as one public driver does it): the ordinary binary protocol byte stream is cut into CAN
+frames of up to 8 data bytes. Requests arrive on ``rx_id`` (default 01h), replies and auto-updates
+leave on ``tx_id`` (default 02h), standard 11-bit IDs. The device parser reassembles frames across
+CAN frames exactly as on a serial line. Needs python-can (``pywsg[can]``); tests use its
+``virtual`` interface.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from typing import Any
+
+from ..protocol import Frame
+from .device_api import GripperLike
+from .scheduler import DeviceRunner
+
+log = logging.getLogger("pywsg.server.can")
+
+
+class CanServer:
+    """Serves ``gripper`` on a python-can bus (``interface``/``channel``)."""
+
+    def __init__(
+        self,
+        gripper: GripperLike,
+        runner: DeviceRunner,
+        channel: str,
+        interface: str = "virtual",
+        rx_id: int = 0x01,
+        tx_id: int = 0x02,
+        bitrate: int = 500_000,
+    ) -> None:
+        self.gripper = gripper
+        self.runner = runner
+        self.channel = channel
+        self.interface = interface
+        self.rx_id = rx_id
+        self.tx_id = tx_id
+        self.bitrate = bitrate
+        self.session: Any = None
+        self._bus: Any = None
+        self._notifier: Any = None
+
+    async def start(self) -> CanServer:
+        try:
+            import can
+        except ImportError as exc:  # optional extra
+            raise RuntimeError("CAN needs python-can: pip install 'pywsg[can]'") from exc
+        loop = asyncio.get_running_loop()
+        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
+        if self.interface != "virtual":
+            kwargs["bitrate"] = self.bitrate
+        self._bus = can.Bus(**kwargs)
+        self.session = self.gripper.open_session("can", peer=self.channel, deliver=self.deliver)
+        self._notifier = can.Notifier(self._bus, [self._on_message], loop=loop)
+        return self
+
+    @property
+    def address(self) -> str:
+        return f"can://{self.interface}/{self.channel}?rx_id=0x{self.rx_id:X}&tx_id=0x{self.tx_id:X} (inferred)"
+
+    def _on_message(self, msg: Any) -> None:
+        if msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame:
+            return
+        replies = self.gripper.feed(self.session, bytes(msg.data))
+        for frame in replies:
+            self._send(frame.encode())
+
+    def deliver(self, frame: Frame) -> None:
+        self._send(frame.encode())
+
+    def _send(self, data: bytes) -> None:
+        import can
+
+        bus = self._bus
+        if bus is None:
+            return
+        for i in range(0, len(data), 8):
+            msg = can.Message(arbitration_id=self.tx_id, data=data[i : i + 8], is_extended_id=False)
+            try:
+                bus.send(msg)
+            except can.CanError as exc:
+                log.debug("can %s: send failed: %s", self.channel, exc)
+                return
+
+    async def close(self) -> None:
+        if self._notifier is not None:
+            self._notifier.stop()
+            self._notifier = None
+        if self.session is not None:
+            self.gripper.close_session(self.session)
+            self.session = None
+        if self._bus is not None:
+            self._bus.shutdown()
+            self._bus = None

@@ -1,0 +1,168 @@
+"""Serial command interface: a pseudo-terminal (``pty``) or an existing serial device.
+
+With ``pty`` the server opens ``os.openpty()``, puts the line in raw mode and keeps its own handle on
+the client side open, so a client closing and reopening the port (pyserial ``Serial(path)``) never
+turns the device side into ``EIO``; :attr:`SerialServer.path` is what the client opens. With a device
+path the port is opened through pyserial at ``baudrate`` (8N1, no flow control).
+
+The serial line has one device session. Output the client does not read is kept up to the soft limit;
+above it auto-update packets are dropped, and above the hard limit the oldest output is discarded
+(a serial line cannot be "closed" on a client that stopped reading).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import logging
+import os
+import tty
+from collections import deque
+from typing import Any
+
+from ..protocol import Frame
+from .device_api import GripperLike
+from .limits import DEFAULT_LIMITS, Limits, droppable
+from .scheduler import DeviceRunner
+from .trace import log_replies
+
+log = logging.getLogger("pywsg.server.serial")
+
+READ_CHUNK = 4096
+
+
+class SerialServer:
+    """Serves ``gripper`` on a pty (``port="pty"``) or a serial device path."""
+
+    def __init__(
+        self,
+        gripper: GripperLike,
+        runner: DeviceRunner,
+        port: str = "pty",
+        baudrate: int = 115200,
+        limits: Limits = DEFAULT_LIMITS,
+    ) -> None:
+        self.gripper = gripper
+        self.runner = runner
+        self.requested = port
+        self.baudrate = baudrate
+        self.limits = limits
+        self.path = ""
+        self.session: Any = None
+        self.dropped = 0
+        self._fd = -1
+        self._keep_fd = -1  # pty: our handle on the client side
+        self._serial: Any = None  # pyserial object for a real device
+        self._out: deque[bytes] = deque()
+        self._out_size = 0
+        self._writing = False
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    async def start(self) -> SerialServer:
+        self._loop = asyncio.get_running_loop()
+        if self.requested == "pty":
+            master, slave = os.openpty()
+            tty.setraw(slave)  # no echo, no line editing: the client sees bytes as sent
+            self.path = os.ttyname(slave)
+            self._fd, self._keep_fd = master, slave
+        else:
+            import serial  # pyserial: configures baud rate and 8N1 on a real port
+
+            self._serial = serial.Serial(self.requested, self.baudrate, timeout=0)
+            self._fd = self._serial.fileno()
+            self.path = self.requested
+        os.set_blocking(self._fd, False)
+        self.session = self.gripper.open_session("serial", peer=self.path, deliver=self.deliver)
+        self._loop.add_reader(self._fd, self._on_readable)
+        return self
+
+    @property
+    def address(self) -> str:
+        return f"serial://{self.path}?baudrate={self.baudrate}"
+
+    def _on_readable(self) -> None:
+        try:
+            data = os.read(self._fd, READ_CHUNK)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            if exc.errno == errno.EIO:  # no client side open (only without our keep-open handle)
+                return
+            raise
+        if not data:
+            return
+        replies = self.gripper.feed(self.session, data)
+        if replies:
+            if log.isEnabledFor(logging.INFO):
+                log_replies(log, f"serial {self.path}", replies)
+            self._send(b"".join(f.encode() for f in replies))
+
+    def deliver(self, frame: Frame) -> None:
+        if droppable(frame.command_id) and self._out_size > self.limits.output_soft:
+            self.dropped += 1
+            return
+        self._send(frame.encode())
+
+    @property
+    def buffered(self) -> int:
+        return self._out_size
+
+    def _send(self, data: bytes) -> None:
+        if self._fd < 0:
+            return
+        if not self._out:
+            try:
+                n = os.write(self._fd, data)
+            except BlockingIOError:
+                n = 0
+            except OSError as exc:
+                log.debug("serial %s: write failed: %s", self.path, exc)
+                return
+            if n == len(data):
+                return
+            data = data[n:]
+        self._out.append(data)
+        self._out_size += len(data)
+        while self._out_size > self.limits.output_hard and len(self._out) > 1:
+            old = self._out.popleft()
+            self._out_size -= len(old)
+            self.dropped += 1
+        if not self._writing and self._loop is not None:
+            self._writing = True
+            self._loop.add_writer(self._fd, self._on_writable)
+
+    def _on_writable(self) -> None:
+        while self._out:
+            chunk = self._out[0]
+            try:
+                n = os.write(self._fd, chunk)
+            except BlockingIOError:
+                return
+            except OSError:
+                self._out.clear()
+                self._out_size = 0
+                break
+            self._out_size -= n
+            if n < len(chunk):
+                self._out[0] = chunk[n:]
+                return
+            self._out.popleft()
+        self._writing = False
+        if self._loop is not None:
+            self._loop.remove_writer(self._fd)
+
+    async def close(self) -> None:
+        if self._loop is not None and self._fd >= 0:
+            self._loop.remove_reader(self._fd)
+            if self._writing:
+                self._loop.remove_writer(self._fd)
+        if self.session is not None:
+            self.gripper.close_session(self.session)
+            self.session = None
+        if self._serial is not None:
+            self._serial.close()
+        elif self._fd >= 0:
+            os.close(self._fd)
+        if self._keep_fd >= 0:
+            os.close(self._keep_fd)
+        self._fd = self._keep_fd = -1

@@ -1,0 +1,334 @@
+"""Run virtual grippers on real interfaces: the engine of ``wsg sim`` and a Python API for tests.
+
+::
+
+    from pywsg.server import SimServer
+
+    async with SimServer(tcp_port=0, udp_port=0, serial="pty") as sim:
+        g = sim.grippers[0]
+        print(g.tcp_port, g.udp_port, g.serial_path)   # bound ports, pty device path
+        # ... connect a client to tcp://127.0.0.1:{g.tcp_port}
+
+In the Python API a port of ``0`` means "any free port" and ``None`` means "interface off" (the CLI
+maps its ``0`` to off). With ``count=N`` there are N independent grippers; fixed ports count up
+from the given one (gripper ``i`` on ``port + i``), port 0 gives each its own free port.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import importlib
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from .can_bus import CanServer
+from .device_api import GripperLike
+from .limits import DEFAULT_LIMITS, Limits
+from .scheduler import DeviceRunner, Scheduler, get_scheduler
+from .serial_port import SerialServer
+from .tcp import TcpServer
+from .udp import UdpServer
+
+log = logging.getLogger("pywsg.server.sim")
+
+GripperFactory = Callable[[str, Any, Any], GripperLike]
+"""(model, settings or None, clock or None) -> gripper; defaults to :class:`pywsg.device.VirtualGripper`."""
+
+
+class SimError(RuntimeError):
+    """A sim interface could not be started (port taken, optional part missing, bad option)."""
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """What to serve. Ports: ``None`` = off, ``0`` = any free port."""
+
+    model: str = "wsg50"
+    host: str = "127.0.0.1"
+    tcp_port: int | None = 0
+    udp_port: int | None = 0
+    udp_reply_port: int | None = None
+    """UDP replies go to the sender's IP on this port (factory setting 1501); None: the sender's port."""
+    serial: str | None = None
+    """``"pty"`` for a pseudo-terminal, a device path for a real port, None for none."""
+    baudrate: int = 115200
+    can_channel: str | None = None
+    """python-can channel (inferred mapping, see docs/sim.md); None: no CAN."""
+    can_interface: str = "virtual"
+    can_rx_id: int = 0x01
+    can_tx_id: int = 0x02
+    modbus_port: int | None = None
+    web_port: int | None = None
+    settings: Path | None = None
+    """Settings file: loaded at start when it exists, saved at a clean stop."""
+    count: int = 1
+    limits: Limits = DEFAULT_LIMITS
+    clock: Any = None
+    """Injected clock for every gripper (tests: ``pywsg.device.ManualClock``); None: real time."""
+    factory: GripperFactory | None = None
+    web_options: dict[str, Any] = field(default_factory=dict)
+    """Extra keyword arguments for ``pywsg.web.app.serve_web``."""
+
+
+def _default_factory(model: str, settings: Any, clock: Any) -> GripperLike:
+    from ..device import VirtualGripper
+
+    kwargs: dict[str, Any] = {}
+    if settings is not None:
+        kwargs["settings"] = settings
+    if clock is not None:
+        kwargs["clock"] = clock
+    gripper: GripperLike = VirtualGripper(model, **kwargs)
+    return gripper
+
+
+def _nth(port: int | None, i: int) -> int | None:
+    if port is None or port == 0:
+        return port
+    return port + i
+
+
+async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwargs: Any) -> Any:
+    try:
+        mod = importlib.import_module(module)
+        serve = getattr(mod, func)
+    except (ImportError, AttributeError) as exc:
+        raise SimError(f"{what} is not available ({module}.{func}: {exc}); leave its port off") from exc
+    return await serve(*args, **kwargs)
+
+
+def _bound_port(obj: Any) -> int | None:
+    """The port a Modbus/web server object is bound to (tolerates a few shapes)."""
+    for attr in ("port", "bound_port"):
+        value = getattr(obj, attr, None)
+        if isinstance(value, int):
+            return value
+    return None
+
+
+@dataclass
+class SimGripper:
+    """One virtual gripper and the interfaces that serve it."""
+
+    index: int
+    gripper: GripperLike
+    runner: DeviceRunner
+    host: str
+    tcp: TcpServer | None = None
+    udp: UdpServer | None = None
+    serial: SerialServer | None = None
+    can: CanServer | None = None
+    modbus: Any = None
+    web: Any = None
+    modbus_port: int | None = None
+    web_port: int | None = None
+
+    @property
+    def tcp_port(self) -> int | None:
+        return self.tcp.port if self.tcp else None
+
+    @property
+    def udp_port(self) -> int | None:
+        return self.udp.port if self.udp else None
+
+    @property
+    def serial_path(self) -> str | None:
+        return self.serial.path if self.serial else None
+
+    @property
+    def tcp_url(self) -> str | None:
+        return self.tcp.address if self.tcp else None
+
+    @property
+    def udp_url(self) -> str | None:
+        return self.udp.address if self.udp else None
+
+    @property
+    def serial_url(self) -> str | None:
+        return self.serial.address if self.serial else None
+
+    def lines(self) -> list[str]:
+        """One line per interface, as ``wsg sim`` prints them."""
+        tag = f"gripper {self.index}: "
+        out = []
+        if self.tcp:
+            out.append(f"{tag}TCP      {self.tcp.address}")
+        if self.udp:
+            extra = "" if self.udp.reply_port is not None else " (replies to the sender's port)"
+            out.append(f"{tag}UDP      {self.udp.address}{extra}")
+        if self.serial:
+            out.append(f"{tag}serial   {self.serial.address}")
+        if self.can:
+            out.append(f"{tag}CAN      {self.can.address}")
+        if self.modbus is not None:
+            out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
+        if self.web is not None:
+            out.append(f"{tag}web      http://{self.host}:{self.web_port}/")
+        return out
+
+
+class SimServer:
+    """Starts ``count`` virtual grippers with their interfaces; ``async with`` or start()/close()."""
+
+    def __init__(self, options: SimOptions | None = None, **overrides: Any) -> None:
+        self.options = replace(options or SimOptions(), **overrides)
+        self.grippers: list[SimGripper] = []
+        self.scheduler: Scheduler | None = None
+        self._started = False
+
+    # convenience for the common single-gripper case
+    def __getitem__(self, i: int) -> SimGripper:
+        return self.grippers[i]
+
+    @property
+    def tcp_port(self) -> int | None:
+        return self.grippers[0].tcp_port
+
+    @property
+    def udp_port(self) -> int | None:
+        return self.grippers[0].udp_port
+
+    @property
+    def serial_path(self) -> str | None:
+        return self.grippers[0].serial_path
+
+    @property
+    def modbus_port(self) -> int | None:
+        return self.grippers[0].modbus_port
+
+    @property
+    def web_port(self) -> int | None:
+        return self.grippers[0].web_port
+
+    @property
+    def gripper(self) -> GripperLike:
+        return self.grippers[0].gripper
+
+    def lines(self) -> list[str]:
+        return [line for g in self.grippers for line in g.lines()]
+
+    async def __aenter__(self) -> SimServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    def _load_settings(self) -> Any:
+        path = self.options.settings
+        if path is None or not Path(path).exists():
+            return None
+        from ..device import Settings
+
+        return Settings.load(path)
+
+    async def start(self) -> SimServer:
+        opts = self.options
+        if opts.count < 1:
+            raise SimError("count must be at least 1")
+        self.scheduler = get_scheduler()
+        factory = opts.factory or _default_factory
+        settings = self._load_settings()
+        self._started = True
+        try:
+            for i in range(opts.count):
+                gripper = factory(opts.model, settings, opts.clock)
+                runner = DeviceRunner(gripper, self.scheduler)
+                sg = SimGripper(i, gripper, runner, opts.host)
+                self.grippers.append(sg)
+                await self._start_one(sg, i)
+                runner.start()
+        except BaseException:
+            await self.close(save=False)
+            raise
+        return self
+
+    async def _start_one(self, sg: SimGripper, i: int) -> None:
+        opts = self.options
+        g, r = sg.gripper, sg.runner
+        try:
+            tcp_port = _nth(opts.tcp_port, i)
+            if tcp_port is not None:
+                sg.tcp = await TcpServer(g, r, opts.host, tcp_port, opts.limits).start()
+            udp_port = _nth(opts.udp_port, i)
+            if udp_port is not None:
+                sg.udp = await UdpServer(g, r, opts.host, udp_port, opts.udp_reply_port, opts.limits).start()
+        except OSError as exc:
+            raise SimError(f"gripper {i}: cannot bind on {opts.host}: {exc.strerror or exc}") from exc
+        if opts.serial:
+            path = opts.serial if opts.serial == "pty" or opts.count == 1 else f"{opts.serial}{i}"
+            try:
+                sg.serial = await SerialServer(g, r, path, opts.baudrate, opts.limits).start()
+            except OSError as exc:
+                raise SimError(f"gripper {i}: cannot open serial port {path}: {exc}") from exc
+        if opts.can_channel:
+            channel = opts.can_channel if opts.count == 1 else f"{opts.can_channel}{i}"
+            sg.can = await CanServer(
+                g, r, channel, opts.can_interface, opts.can_rx_id, opts.can_tx_id
+            ).start()
+        modbus_port = _nth(opts.modbus_port, i)
+        if modbus_port is not None:
+            sg.modbus = await _serve_optional(
+                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port
+            )
+            sg.modbus_port = _bound_port(sg.modbus) or modbus_port
+        web_port = _nth(opts.web_port, i)
+        if web_port is not None:
+            sg.web = await _serve_optional(
+                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **opts.web_options
+            )
+            sg.web_port = _bound_port(sg.web) or web_port
+
+    async def close(self, save: bool = True) -> None:
+        """Stop every interface (sockets closed, sessions closed) and save the settings file."""
+        if not self._started:
+            return
+        self._started = False
+        for sg in self.grippers:
+            sg.runner.stop()
+            for part in (sg.web, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+                if part is None:
+                    continue
+                with contextlib.suppress(Exception):
+                    await part.close()
+        path = self.options.settings
+        if save and path is not None and self.grippers:
+            settings = getattr(self.grippers[0].gripper, "settings", None)
+            if settings is not None and hasattr(settings, "save"):
+                settings.save(path)
+        await asyncio.sleep(0)
+
+
+async def run_sim(
+    options: SimOptions,
+    stop: asyncio.Event | None = None,
+    echo: Callable[[str], None] = print,
+) -> SimServer:
+    """Run until ``stop`` is set or SIGINT/SIGTERM arrives; prints one line per interface."""
+    import signal
+
+    stop = stop or asyncio.Event()
+    loop = asyncio.get_running_loop()
+    installed = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(sig, stop.set)
+            installed.append(sig)
+        except (NotImplementedError, RuntimeError, ValueError):  # not the main thread / platform
+            pass
+    sim = SimServer(options)
+    try:
+        await sim.start()
+        for line in sim.lines():
+            echo(line)
+        await stop.wait()
+        echo("stopping")
+    finally:
+        await sim.close()
+        for sig in installed:
+            loop.remove_signal_handler(sig)
+    return sim

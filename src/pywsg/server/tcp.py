@@ -1,0 +1,248 @@
+"""TCP command interface (default port 1000).
+
+One client at a time holds the command interface and gets a device session (its auto-update
+subscriptions, its 07h disconnect announcement). Further connections are accepted and answered
+E_ACCESS_DENIED for every frame (SPEC-NOTES), so nobody steals motion control silently; they stay
+refused even after the controlling client leaves (the *next* connection gets control). Closing the
+controlling connection without 07h raises FAST STOP unless that setting is off (device rule).
+
+Every write holds whole frames (public clients read field by field), TCP_NODELAY is on, and output
+is bounded (see :class:`~pywsg.server.limits.Limits`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+import time
+from typing import Any
+
+from ..protocol import Frame, FrameParser, Status, command_name
+from ..protocol.catalog import request_max_payload
+from .device_api import GripperLike
+from .limits import DEFAULT_LIMITS, Limits, droppable
+from .scheduler import DeviceRunner, Scheduler
+from .trace import log_replies
+
+log = logging.getLogger("pywsg.server.tcp")
+
+
+def tune_socket(sock: socket.socket | None, limits: Limits) -> None:
+    """TCP_NODELAY, keepalive against half-open connections, optional small send buffer."""
+    if sock is None:
+        return
+    try:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
+        if hasattr(socket, "TCP_KEEPIDLE"):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE, limits.keepalive_idle)
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL, 1)
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT, 3)
+        if limits.socket_sndbuf:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, limits.socket_sndbuf)
+    except OSError:  # not every platform has every option
+        pass
+
+
+class TcpConnection(asyncio.Protocol):
+    """One TCP client: the controller (device session) or a refused second client."""
+
+    def __init__(self, server: TcpServer) -> None:
+        self.server = server
+        self.transport: asyncio.Transport | None = None
+        self.session: Any = None
+        self.peer = "?"
+        self.refused: FrameParser | None = None
+        self._out: list[bytes] = []
+        self._out_size = 0
+        self.dropped = 0
+        """Auto-update packets dropped because the client did not read."""
+        self.last_rx = time.monotonic()
+        self._paused = False
+
+    # -- asyncio.Protocol ------------------------------------------------------------------
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        srv = self.server
+        peer = transport.get_extra_info("peername")
+        self.peer = f"{peer[0]}:{peer[1]}" if isinstance(peer, tuple) else str(peer)
+        if len(srv.connections) >= srv.limits.max_connections:
+            log.warning("tcp %s: too many connections, closed", self.peer)
+            transport.abort()
+            return
+        srv.connections.add(self)
+        tune_socket(transport.get_extra_info("socket"), srv.limits)
+        transport.set_write_buffer_limits(high=srv.limits.high_water)
+        if srv.controller is None:
+            srv.controller = self
+            self.session = srv.gripper.open_session("tcp", peer=self.peer, deliver=self.deliver)
+            log.info("tcp %s: connected (controls the gripper)", self.peer)
+        else:
+            self.refused = FrameParser(True, request_max_payload)
+            log.info("tcp %s: connected while %s holds control: E_ACCESS_DENIED", self.peer, srv.controller.peer)
+
+    def data_received(self, data: bytes) -> None:
+        self.last_rx = time.monotonic()
+        if self.refused is not None:
+            self._refuse(data)
+            return
+        replies = self.server.gripper.feed(self.session, data)
+        if replies:
+            if log.isEnabledFor(logging.INFO):
+                log_replies(log, f"tcp {self.peer}", replies)
+            self._write_now(replies)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        srv = self.server
+        srv.connections.discard(self)
+        self._out.clear()
+        if srv.controller is self:
+            srv.controller = None
+            session, self.session = self.session, None
+            if session is not None:
+                srv.gripper.close_session(session)
+            log.info("tcp %s: disconnected%s", self.peer, f" ({exc})" if exc else "")
+        self.transport = None
+
+    def pause_writing(self) -> None:
+        # a client that does not read its replies: stop reading its requests until it does
+        if self.transport is not None and not self._paused:
+            self._paused = True
+            self.transport.pause_reading()
+
+    def resume_writing(self) -> None:
+        if self.transport is not None and self._paused:
+            self._paused = False
+            self.transport.resume_reading()
+
+    # -- output ------------------------------------------------------------------------------
+    @property
+    def buffered(self) -> int:
+        """Bytes waiting to go out to this client (ours and the transport's)."""
+        t = self.transport
+        return self._out_size + (t.get_write_buffer_size() if t is not None else 0)
+
+    def deliver(self, frame: Frame) -> None:
+        """Deferred frame from the device (final reply, auto-update). Called during poll()."""
+        t = self.transport
+        if t is None or t.is_closing():
+            return
+        if droppable(frame.command_id) and self.buffered > self.server.limits.output_soft:
+            self.dropped += 1
+            return
+        raw = frame.encode()
+        self._out.append(raw)
+        self._out_size += len(raw)
+        sched = self.server.runner.scheduler
+        if sched is not None and sched.in_round:
+            sched.mark_dirty(self)
+        else:
+            self.flush()
+
+    def flush(self) -> None:
+        t = self.transport
+        if not self._out:
+            return
+        data = b"".join(self._out)
+        self._out.clear()
+        self._out_size = 0
+        if t is None or t.is_closing():
+            return
+        t.write(data)
+        self._check_hard_limit(t)
+
+    def _write_now(self, replies: list[Frame]) -> None:
+        t = self.transport
+        if t is None or t.is_closing():
+            return
+        if len(replies) == 1:
+            t.write(replies[0].encode())
+        else:
+            t.write(b"".join(f.encode() for f in replies))
+        self._check_hard_limit(t)
+
+    def _check_hard_limit(self, t: asyncio.Transport) -> None:
+        if t.get_write_buffer_size() > self.server.limits.output_hard:
+            log.warning("tcp %s: %d bytes unread, connection closed", self.peer, t.get_write_buffer_size())
+            t.abort()
+
+    def _refuse(self, data: bytes) -> None:
+        assert self.refused is not None
+        out = []
+        for ev in self.refused.feed(data):
+            cid = getattr(ev, "command_id", None)
+            if cid is not None:
+                out.append(Frame.reply(cid, Status.E_ACCESS_DENIED))
+                if log.isEnabledFor(logging.INFO):
+                    log.info("tcp %s: %s refused (not the controlling client)", self.peer, command_name(cid))
+        if out:
+            self._write_now(out)
+
+
+class TcpServer:
+    """Serves ``gripper`` on ``host:port`` (port 0: any free port; read :attr:`port`)."""
+
+    def __init__(
+        self,
+        gripper: GripperLike,
+        runner: DeviceRunner,
+        host: str = "127.0.0.1",
+        port: int = 1000,
+        limits: Limits = DEFAULT_LIMITS,
+    ) -> None:
+        self.gripper = gripper
+        self.runner = runner
+        self.host = host
+        self.requested_port = port
+        self.limits = limits
+        self.connections: set[TcpConnection] = set()
+        self.controller: TcpConnection | None = None
+        self._server: asyncio.Server | None = None
+        self._reaper: asyncio.Task[None] | None = None
+        self.port = 0
+
+    @property
+    def scheduler(self) -> Scheduler | None:
+        return self.runner.scheduler
+
+    async def start(self) -> TcpServer:
+        loop = asyncio.get_running_loop()
+        self._server = await loop.create_server(
+            lambda: TcpConnection(self), self.host, self.requested_port, reuse_address=True, backlog=128
+        )
+        self.port = self._server.sockets[0].getsockname()[1]
+        self._reaper = loop.create_task(self._reap_idle_refused())
+        return self
+
+    async def _reap_idle_refused(self) -> None:
+        # refused second clients that stay silent are closed; the controller is kept (keepalive covers it)
+        period = max(self.limits.denied_idle / 4, 0.05)
+        while True:
+            await asyncio.sleep(period)
+            cutoff = time.monotonic() - self.limits.denied_idle
+            for conn in list(self.connections):
+                if conn.refused is not None and conn.last_rx < cutoff and conn.transport is not None:
+                    conn.transport.close()
+
+    @property
+    def address(self) -> str:
+        return f"tcp://{self.host}:{self.port}"
+
+    async def close(self) -> None:
+        if self._reaper is not None:
+            self._reaper.cancel()
+            try:
+                await self._reaper
+            except asyncio.CancelledError:
+                pass
+            self._reaper = None
+        if self._server is not None:
+            self._server.close()
+            for conn in list(self.connections):
+                if conn.transport is not None:
+                    conn.transport.abort()
+            await self._server.wait_closed()
+            self._server = None
+        await asyncio.sleep(0)  # let connection_lost run
