@@ -53,20 +53,30 @@ def crc16_bytewise(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) ->
     return crc
 
 
+_WORD_STRUCTS: dict[int, struct.Struct] = {}
+_CACHED_WORDS = 640  # struct objects cached for frames up to 1280 bytes (the parser's cap is 1 KiB)
+
+
 def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
     """CRC of ``data`` continuing from ``crc`` (FFFFh for a new frame)."""
-    raw = bytes(data)
-    n = len(raw)
+    n = len(data)
+    nwords = n >> 1
     t2 = _WORD_TABLE
-    if n >= 2:
-        words = array("H")
-        words.frombytes(raw[: n & ~1])
-        if not _LITTLE:
-            words.byteswap()
+    if nwords:
+        if nwords <= _CACHED_WORDS:
+            st = _WORD_STRUCTS.get(nwords)
+            if st is None:
+                st = _WORD_STRUCTS.setdefault(nwords, struct.Struct(f"<{nwords}H"))
+            words: tuple[int, ...] | array[int] = st.unpack_from(data)
+        else:
+            words = array("H")
+            words.frombytes(bytes(data[: n & ~1]))
+            if not _LITTLE:
+                words.byteswap()
         for w in words:
             crc = t2[crc ^ w]
     if n & 1:
-        crc = CRC_TABLE[(crc ^ raw[-1]) & 0xFF] ^ (crc >> 8)
+        crc = CRC_TABLE[(crc ^ data[n - 1]) & 0xFF] ^ (crc >> 8)
     return crc
 
 
