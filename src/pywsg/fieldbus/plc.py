@@ -1,0 +1,471 @@
+"""The PLC side of the fieldbus interface: a Modbus/TCP master and the manual's gripping cycle.
+
+- :class:`AsyncFieldbusGripper` (asyncio) and :class:`FieldbusGripper` (blocking) talk Modbus/TCP to a
+  real WSG or to ``wsg sim --modbus-port N`` with the bus's edge semantics: set the parameters,
+  raise the command flag, wait until the gripper shows the command started, drop the flag, wait for
+  the result. Units: mm, mm/s, N.
+- :class:`GrippingCycle` is the SCL demo of 002 Appendix D (states −1..10) ported to Python as a
+  sans-IO scan function: ``step(inputs, now) -> outputs``; ``wsg plc-demo`` runs it over Modbus/TCP.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass, field, replace
+from typing import Any, TypeVar
+
+from pymodbus.client import AsyncModbusTcpClient
+
+from ..protocol import GripperState, GState, Status, SystemFlag
+from .image import INPUT_REGISTERS, CmdFlag, InputImage, OutputImage, force_scale
+
+T = TypeVar("T")
+
+_RUNNING = {
+    CmdFlag.MOVE: GState.POSITIONING,
+    CmdFlag.HOMING: GState.POSITIONING,
+    CmdFlag.GRIP: GState.GRIPPING,
+    CmdFlag.RELEASE: GState.RELEASING,
+}
+
+
+class FieldbusError(Exception):
+    """A fieldbus command ended with an error STATUS CODE (or timed out); ``image`` is the last input."""
+
+    def __init__(self, message: str, image: InputImage | None = None) -> None:
+        super().__init__(message)
+        self.image = image
+        self.status: Status | int | None = image.status_code if image is not None else None
+
+
+class AsyncFieldbusGripper:
+    """Modbus/TCP master for the WSG fieldbus interface (asyncio).
+
+    ``model`` selects the force unit (1/10 N on "wsg70"). ``poll_interval`` is the bus cycle used
+    while waiting, in seconds.
+    """
+
+    def __init__(self, client: AsyncModbusTcpClient, model: str = "wsg50", device_id: int = 1,
+                 poll_interval: float = 0.002) -> None:
+        self.client = client
+        self.model = model
+        self.device_id = device_id
+        self.poll_interval = poll_interval
+        self.outputs = OutputImage()
+        self.inputs = InputImage()
+
+    @classmethod
+    async def open(cls, host: str = "127.0.0.1", port: int = 502, *, model: str = "wsg50",
+                   device_id: int = 1, timeout: float = 3.0, poll_interval: float = 0.002) -> AsyncFieldbusGripper:
+        """Connect to ``host:port`` (raises ConnectionError)."""
+        client = AsyncModbusTcpClient(host, port=port, timeout=timeout, retries=0)
+        if not await client.connect():
+            client.close()
+            raise ConnectionError(f"cannot connect to Modbus/TCP {host}:{port}")
+        self = cls(client, model, device_id, poll_interval)
+        # Start from the gripper's current outputs, so opening never fires an edge.
+        rr = await client.read_holding_registers(0, count=4, device_id=device_id)
+        if not rr.isError():
+            self.outputs = OutputImage.from_registers(list(rr.registers))
+        return self
+
+    async def close(self) -> None:
+        """Close the connection."""
+        self.client.close()
+
+    async def __aenter__(self) -> AsyncFieldbusGripper:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    # --- one bus cycle -------------------------------------------------------------------------
+    async def read(self) -> InputImage:
+        """Read input registers 0..5."""
+        rr = await self.client.read_input_registers(0, count=INPUT_REGISTERS, device_id=self.device_id)
+        if rr.isError():
+            raise FieldbusError(f"reading input registers failed: {rr}")
+        self.inputs = InputImage.from_registers(list(rr.registers))
+        return self.inputs
+
+    async def write(self, image: OutputImage) -> None:
+        """Write holding registers 0..3."""
+        rr = await self.client.write_registers(0, image.registers(), device_id=self.device_id)
+        if rr.isError():
+            raise FieldbusError(f"writing holding registers failed: {rr}")
+        self.outputs = image
+
+    async def cycle(self, image: OutputImage | None = None) -> InputImage:
+        """One bus cycle: write the outputs (the current ones if None), read the inputs."""
+        await self.write(self.outputs if image is None else image)
+        return await self.read()
+
+    # --- commands ------------------------------------------------------------------------------
+    def _params(self, width: float | None, speed: float | None, force: float | None) -> OutputImage:
+        out = self.outputs
+        return replace(
+            out,
+            width=out.width if width is None else round(width * 100),
+            speed=out.speed if speed is None else round(speed * 100),
+            force_limit=out.force_limit if force is None else round(force * force_scale(self.model)),
+        )
+
+    async def _wait(self, done: Callable[[InputImage], bool], timeout: float, what: str) -> InputImage:
+        deadline = time.monotonic() + timeout
+        while True:
+            inputs = await self.read()
+            if done(inputs):
+                return inputs
+            if time.monotonic() > deadline:
+                raise FieldbusError(f"{what}: timed out after {timeout:g} s", inputs)
+            await asyncio.sleep(self.poll_interval)
+
+    async def command(self, flag: CmdFlag, *, width: float | None = None, speed: float | None = None,
+                      force: float | None = None, wait: bool = True, timeout: float = 10.0) -> InputImage:
+        """Issue one edge command: parameters + raise ``flag``; wait until started; drop the flag.
+
+        With ``wait`` the result is awaited too: returns the input image, raises FieldbusError when
+        STATUS CODE is an error. Widths mm, speeds mm/s, forces N.
+        """
+        base = self._params(width, speed, force)
+        if base.cmdflags & flag:   # make sure there is an edge
+            base = replace(base, cmdflags=base.cmdflags & ~flag)
+            await self.write(base)
+        await self.write(replace(base, cmdflags=base.cmdflags | flag))
+        running = _RUNNING.get(flag)
+
+        def started(i: InputImage) -> bool:
+            if i.status == Status.E_CMD_PENDING or (running is not None and i.gstate & running):
+                return True
+            if flag == CmdFlag.FASTSTOP:
+                return bool(i.sysstate & SystemFlag.SF_FAST_STOP)
+            if flag == CmdFlag.STOP_ACK:
+                return not i.sysstate & SystemFlag.SF_FAST_STOP or i.status != Status.E_SUCCESS
+            return i.status != Status.E_SUCCESS   # an immediate error
+
+        try:
+            inputs = await self._wait(started, timeout, flag.name or "command")
+        finally:
+            await self.write(replace(self.outputs, cmdflags=self.outputs.cmdflags & ~flag))
+        if wait and running is not None:
+            inputs = await self._wait(lambda i: i.status != Status.E_CMD_PENDING, timeout, flag.name or "")
+        if inputs.status not in (Status.E_SUCCESS, Status.E_CMD_PENDING):
+            raise FieldbusError(f"{flag.name}: {Status.describe(inputs.status)}", inputs)
+        return inputs
+
+    async def homing(self, timeout: float = 10.0) -> InputImage:
+        """Reference the gripper (HOMING)."""
+        return await self.command(CmdFlag.HOMING, timeout=timeout)
+
+    async def move(self, width: float, speed: float, force: float | None = None, wait: bool = True,
+                   timeout: float = 10.0) -> InputImage:
+        """Pre-position to ``width`` mm at ``speed`` mm/s (MOVE); ``force`` N optional."""
+        return await self.command(CmdFlag.MOVE, width=width, speed=speed, force=force, wait=wait, timeout=timeout)
+
+    async def grip(self, width: float, speed: float, force: float, wait: bool = True,
+                   timeout: float = 10.0) -> InputImage:
+        """Grip a part of nominal ``width`` mm at ``speed`` mm/s with ``force`` N (GRIP)."""
+        return await self.command(CmdFlag.GRIP, width=width, speed=speed, force=force, wait=wait, timeout=timeout)
+
+    async def release(self, width: float, speed: float, wait: bool = True, timeout: float = 10.0) -> InputImage:
+        """Release to ``width`` mm at ``speed`` mm/s (RELEASE)."""
+        return await self.command(CmdFlag.RELEASE, width=width, speed=speed, wait=wait, timeout=timeout)
+
+    async def stop(self) -> InputImage:
+        """STOP/ACK when no FAST STOP is pending: stop the fingers."""
+        return await self.command(CmdFlag.STOP_ACK)
+
+    async def fast_stop(self) -> InputImage:
+        """Raise a FAST STOP (FASTSTOP edge; the flag is dropped again afterwards)."""
+        return await self.command(CmdFlag.FASTSTOP)
+
+    async def acknowledge(self) -> InputImage:
+        """Acknowledge a FAST STOP (STOP/ACK edge with FASTSTOP at 0)."""
+        return await self.command(CmdFlag.STOP_ACK)
+
+    async def jog(self, direction: int, speed: float = 0.0, force: float | None = None) -> InputImage:
+        """Jog mode (levels): direction +1 / -1 sets JOG+ / JOG-, 0 clears both. Speed 0: minimum."""
+        flags = self.outputs.cmdflags & ~(CmdFlag.JOG_PLUS | CmdFlag.JOG_MINUS)
+        if direction > 0:
+            flags |= CmdFlag.JOG_PLUS
+        elif direction < 0:
+            flags |= CmdFlag.JOG_MINUS
+        out = replace(self._params(None, speed, force), cmdflags=flags)
+        return await self.cycle(out)
+
+    async def set_user_flags(self, if_flags: int) -> InputImage:
+        """Write IF1..IF8 (bit 0 = IF1) for on-board scripts."""
+        return await self.cycle(replace(self.outputs, if_flags=if_flags & 0xFF))
+
+
+class FieldbusGripper:
+    """Blocking :class:`AsyncFieldbusGripper`: same methods, run on a private event-loop thread."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 502, *, model: str = "wsg50", device_id: int = 1,
+                 timeout: float = 3.0) -> None:
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="fieldbus-gripper", daemon=True)
+        self._thread.start()
+        try:
+            self._async = self._run(AsyncFieldbusGripper.open(host, port, model=model, device_id=device_id,
+                                                              timeout=timeout))
+        except BaseException:
+            self._stop_loop()
+            raise
+
+    def _run(self, coro: Coroutine[Any, Any, T]) -> T:
+        return asyncio.run_coroutine_threadsafe(coro, self._loop).result()
+
+    def _stop_loop(self) -> None:
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=5)
+        self._loop.close()
+
+    def close(self) -> None:
+        """Close the connection and the loop thread."""
+        if self._loop.is_closed():
+            return
+        self._run(self._async.close())
+        self._stop_loop()
+
+    def __enter__(self) -> FieldbusGripper:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def outputs(self) -> OutputImage:
+        return self._async.outputs
+
+    def read(self) -> InputImage:
+        return self._run(self._async.read())
+
+    def write(self, image: OutputImage) -> None:
+        self._run(self._async.write(image))
+
+    def cycle(self, image: OutputImage | None = None) -> InputImage:
+        return self._run(self._async.cycle(image))
+
+    def command(self, flag: CmdFlag, **kw: Any) -> InputImage:
+        return self._run(self._async.command(flag, **kw))
+
+    def homing(self, timeout: float = 10.0) -> InputImage:
+        return self._run(self._async.homing(timeout))
+
+    def move(self, width: float, speed: float, force: float | None = None, wait: bool = True) -> InputImage:
+        return self._run(self._async.move(width, speed, force, wait))
+
+    def grip(self, width: float, speed: float, force: float, wait: bool = True) -> InputImage:
+        return self._run(self._async.grip(width, speed, force, wait))
+
+    def release(self, width: float, speed: float, wait: bool = True) -> InputImage:
+        return self._run(self._async.release(width, speed, wait))
+
+    def stop(self) -> InputImage:
+        return self._run(self._async.stop())
+
+    def fast_stop(self) -> InputImage:
+        return self._run(self._async.fast_stop())
+
+    def acknowledge(self) -> InputImage:
+        return self._run(self._async.acknowledge())
+
+    def jog(self, direction: int, speed: float = 0.0, force: float | None = None) -> InputImage:
+        return self._run(self._async.jog(direction, speed, force))
+
+    def set_user_flags(self, if_flags: int) -> InputImage:
+        return self._run(self._async.set_user_flags(if_flags))
+
+
+# ---------------------------------------------------------------------------------------------------
+# The manual's gripping cycle (002 Appendix D, SCL listing), as a sans-IO scan function.
+
+
+@dataclass
+class CycleConfig:
+    """The listing's CycleConfig in bus units (1/100 mm, 1/100 mm/s, 1/100 N) and seconds."""
+
+    prepos_width: int = 3000
+    prepos_speed: int = 40000
+    prepos_force: int = 8000
+    grasp_width: int = 2200
+    grasp_speed: int = 40000
+    grasp_force: int = 5000
+    holding_time: float = 1.0
+    release_width: int = 3000
+    release_speed: int = 40000
+    release_force: int = 8000
+    start_width: int = 6000
+    start_speed: int = 40000
+    start_force: int = 8000
+
+
+STEP_TEXT = {
+    -1: "error: reset all command flags, set STOP/ACK",
+    0: "homing: wait for IDLE, reset STOP/ACK, set HOMING",
+    1: "homing running? wait for POSITIONING, reset HOMING",
+    2: "wait for IDLE and REFERENCED",
+    3: "pre-position: MOVE to PreposWidth",
+    4: "wait for POSITIONING, reset MOVE",
+    5: "grip: GRIP at GraspWidth",
+    6: "wait for GRIPPING, reset GRIP",
+    7: "holding: hold for HoldingTime (release at once on NO_PART / PART_LOST)",
+    8: "release: wait for RELEASING, reset RELEASE",
+    9: "back to start: MOVE to StartWidth",
+    10: "wait for POSITIONING, reset MOVE",
+    11: "cycle finished: wait for IDLE, restart at step 3",
+}
+
+
+@dataclass
+class GrippingCycle:
+    """The SCL ``GrippingCycle`` function block. Call :meth:`step` once per PLC scan.
+
+    Ported faithfully, with one robustness change: a step waiting for a *running* state
+    (POSITIONING, GRIPPING, RELEASING) also accepts the state that follows it, because a fast
+    virtual gripper can finish a short motion between two scans. ``state`` starts at 0 (homing);
+    the listing's initial -2 falls into the default branch, which restarts at step 3 without homing.
+    """
+
+    config: CycleConfig = field(default_factory=CycleConfig)
+    state: int = 0
+    send: OutputImage = field(default_factory=OutputImage)
+    holding_active: bool = False
+    timer_due: float | None = None
+    cycles: int = 0
+    error_count: int = 0
+    holds: int = 0
+    no_part: int = 0
+    log: Callable[[str], None] | None = None
+
+    def _set(self, on: CmdFlag = CmdFlag.NONE, off: CmdFlag = CmdFlag.NONE, **params: int) -> None:
+        self.send = replace(self.send, cmdflags=(self.send.cmdflags | on) & ~off, **params)
+
+    def _say(self, text: str) -> None:
+        if self.log is not None:
+            self.log(text)
+
+    def step(self, receive: InputImage, now: float) -> OutputImage:
+        """One scan: read ``receive``, run the CASE, return the outputs to write."""
+        gs = receive.gstate
+        cfg = self.config
+        timer_expired = self.timer_due is not None and now >= self.timer_due
+        do_next = False
+        state = self.state
+        error = bool(gs & GState.ERROR)
+        # Port addition: a command the gripper refused leaves it IDLE with an error STATUS CODE; the
+        # steps waiting for a running state treat that like ERROR instead of waiting forever.
+        refused = bool(gs & GState.IDLE) and receive.status not in (Status.E_SUCCESS, Status.E_CMD_PENDING)
+
+        if state == -1:
+            self.error_count += 1
+            self._set(on=CmdFlag.STOP_ACK, off=CmdFlag.FASTSTOP | CmdFlag.GRIP | CmdFlag.HOMING
+                      | CmdFlag.JOG_MINUS | CmdFlag.JOG_PLUS | CmdFlag.MOVE | CmdFlag.RELEASE)
+            do_next = True
+        elif state == 0:
+            if not gs & GState.IDLE:
+                self.state = -1
+            else:
+                self._set(on=CmdFlag.HOMING, off=CmdFlag.STOP_ACK)
+                do_next = True
+        elif state == 1:
+            if error or refused:
+                self.state = -1
+            # POSITIONING while homing; IDLE and REFERENCED if homing finished between two scans.
+            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS
+                                           and receive.sysstate & SystemFlag.SF_REFERENCED):
+                self._set(off=CmdFlag.HOMING)
+                do_next = True
+        elif state == 2:
+            if error:
+                self.state = -1
+            if gs & GState.IDLE:
+                if not receive.sysstate & SystemFlag.SF_REFERENCED:
+                    self.state = -1
+                else:
+                    do_next = True
+        elif state == 3:
+            if error:
+                self.state = -1
+            if gs & GState.IDLE:
+                self._set(on=CmdFlag.MOVE, width=cfg.prepos_width, speed=cfg.prepos_speed,
+                          force_limit=cfg.prepos_force)
+                do_next = True
+        elif state == 4:
+            if error or refused:
+                self.state = -1
+            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+                self._set(off=CmdFlag.MOVE)
+                do_next = True
+        elif state == 5:
+            if error:
+                self.state = -1
+            if gs & GState.IDLE:
+                self._set(on=CmdFlag.GRIP, width=cfg.grasp_width, speed=cfg.grasp_speed,
+                          force_limit=cfg.grasp_force)
+                do_next = True
+        elif state == 6:
+            if error or refused:
+                self.state = -1
+            if gs & (GState.GRIPPING | GState.HOLDING | GState.NO_PART | GState.PART_LOST):
+                self._set(off=CmdFlag.GRIP)
+                do_next = True
+        elif state == 7:
+            if error:
+                self.state = -1
+            if gs & GState.HOLDING and not self.holding_active:
+                self.holding_active = True
+                self.holds += 1
+                self.timer_due = now + cfg.holding_time
+                timer_expired = False
+            if timer_expired or gs & (GState.NO_PART | GState.PART_LOST):
+                if gs & GState.NO_PART:
+                    self.no_part += 1
+                self.holding_active = False
+                self.timer_due = None
+                self._set(on=CmdFlag.RELEASE, width=cfg.release_width, speed=cfg.release_speed,
+                          force_limit=cfg.release_force)
+                do_next = True
+        elif state == 8:
+            if error or refused:
+                self.state = -1
+            if gs & GState.RELEASING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+                self._set(off=CmdFlag.RELEASE)
+                do_next = True
+        elif state == 9:
+            if error:
+                self.state = -1
+            if gs & GState.IDLE:
+                self._set(on=CmdFlag.MOVE, width=cfg.start_width, speed=cfg.start_speed,
+                          force_limit=cfg.start_force)
+                do_next = True
+        elif state == 10:
+            if error or refused:
+                self.state = -1
+            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+                self._set(off=CmdFlag.MOVE)
+                do_next = True
+        else:  # default: state not in -1..10
+            if error:
+                self.state = -1
+            if gs & GState.IDLE:
+                self.state = 3
+                self.cycles += 1
+
+        if do_next:
+            self.state += 1
+        if self.state != state:
+            self._say(f"step {state:>2} -> {self.state:>2}: {STEP_TEXT.get(self.state, 'default branch')}"
+                      f"  [{_gstate_name(gs)}, {Status.describe(receive.status)}]")
+        return self.send
+
+
+def _gstate_name(gs: GState) -> str:
+    value = int(gs)
+    if value and value & (value - 1) == 0:
+        return GripperState(value.bit_length() - 1).name
+    return f"GSTATE={value:02X}h"
