@@ -119,3 +119,22 @@ class CommLog:
             for fn in self.listeners:
                 fn(entry)
         return entry
+
+    def note(self, direction: TxRx, message: str, when: float | None = None) -> None:
+        """A stream problem (bad checksum, skipped bytes) in the log."""
+        t = time.time() if when is None else when
+        with self._lock:
+            if self.text is not None:
+                self.text.write(f"{_clock(t)} {_ARROW[direction]} -- {message}\n")
+                self.text.flush()
+            if self.jsonl is not None:
+                self.jsonl.write(json.dumps({"time": round(t, 6), "direction": direction, "error": message}) + "\n")
+                self.jsonl.flush()
+
+    def hook(self, entry: Any) -> None:
+        """Adapter for the driver's ``on_frame`` hook (``pywsg.client.commlog.CommEntry``)."""
+        direction: TxRx = "tx" if entry.direction == "tx" else "rx"
+        if entry.frame is not None:
+            self.record(direction, entry.frame, entry.time)
+        elif entry.error is not None:
+            self.note(direction, entry.error.message, entry.time)

@@ -147,8 +147,8 @@ class Options:
 
 def common_options(f: F) -> F:
     """``--json``, ``--log``, ``--log-file``, ``--timeout`` (in that order in --help)."""
-    f = click.option("--timeout", type=float, default=10.0, show_default=True, metavar="SECONDS",
-                     help="How long to wait for the gripper's answer (motions: for the final reply).")(f)
+    f = click.option("--timeout", type=click.FloatRange(min=0.01), default=5.0, show_default=True, metavar="SECONDS",
+                     help="How long to wait for the gripper's reply (motions: --motion-timeout).")(f)
     f = click.option("--log-file", type=click.Path(dir_okay=False, writable=True), metavar="PATH",
                      help="Append the communication log as JSON lines to PATH (read it with `wsg log PATH`).")(f)
     f = click.option("--log", "log_flag", is_flag=True,
