@@ -102,3 +102,12 @@ def test_request_and_reply_round_trip_through_the_parser(cid: int, data: st.Data
     assert status is Status.E_SUCCESS
     assert all(_same(req[k], got_req[k]) for k in req)
     assert all(_same(rep[k], got_rep[k]) for k in rep)
+
+
+def test_generated_command_reference_is_current() -> None:
+    from pathlib import Path
+
+    from pywsg.protocol.reference import markdown
+
+    doc = Path(__file__).resolve().parents[2] / "docs" / "commands.md"
+    assert doc.read_text(encoding="utf-8") == markdown(), "regenerate: python -m pywsg.protocol.reference"
