@@ -1,0 +1,15 @@
+"""The driver: :class:`AsyncGripper` (asyncio) and :class:`Gripper` (blocking), over TCP, UDP and serial."""
+
+from __future__ import annotations
+
+from .aio import AsyncFinger, AsyncGripper, AsyncMotion, AsyncStream, ReconnectPolicy
+from .commlog import CommEntry, describe
+from .sync import Finger, Gripper, Motion, Stream
+from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
+from .url import Endpoint, parse_url
+
+__all__ = [
+    "AsyncFinger", "AsyncGripper", "AsyncMotion", "AsyncStream", "CommEntry", "Endpoint", "Finger", "FingerInfo",
+    "Gripper", "Limits", "Motion", "ReconnectPolicy", "Reply", "Sample", "SoftLimits", "State", "Statistics",
+    "Stream", "SystemInfo", "describe", "parse_url",
+]

@@ -1,0 +1,729 @@
+"""``AsyncGripper``: the asyncio driver."""
+
+from __future__ import annotations
+
+import asyncio
+import builtins
+import collections
+import logging
+import time
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any, TypeVar
+
+from ..errors import ConnectionLostError, TimeoutError, WsgError
+from ..protocol import (
+    ChecksumMismatch,
+    Command,
+    FingerFlag,
+    Frame,
+    FrameParser,
+    GarbageSkipped,
+    GripperState,
+    HomingDirection,
+    ParseError,
+    Status,
+    SystemFlag,
+    parse_datagram,
+)
+from . import calls
+from .aio_transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
+from .calls import Call
+from .commlog import RX, TX, CommHook, CommLog
+from .core import (
+    DEFAULT_MOTION_TIMEOUT,
+    DEFAULT_TIMEOUT,
+    bad_checksum,
+    decode_success,
+    lost,
+    needs_flags,
+    raise_for,
+    sample_of,
+    status_of,
+    stream_id,
+)
+from .demux import Demux, Sink, Waiter
+from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
+from .url import Endpoint, parse_url
+
+log = logging.getLogger("pywsg.client")
+T = TypeVar("T")
+
+
+@dataclass
+class ReconnectPolicy:
+    """Opt-in automatic reconnection: ``attempts`` tries, ``delay`` s apart (doubling up to ``max_delay``)."""
+
+    attempts: int = 10
+    delay: float = 0.2
+    max_delay: float = 5.0
+
+
+class _AWaiter(Waiter):
+    __slots__ = ("fut",)
+
+    def __init__(self, command_id: int, loop: asyncio.AbstractEventLoop, final: Waiter | None = None) -> None:
+        super().__init__(command_id, final)
+        self.fut: asyncio.Future[None] = loop.create_future()
+
+    def _wake(self) -> None:
+        if not self.fut.done():
+            self.fut.set_result(None)
+
+
+class AsyncMotion:
+    """A running motion (``wait=False``): ``await motion`` or ``await motion.wait(timeout)``.
+
+    ``wait()`` returns None when the motion ended with E_SUCCESS and raises the matching
+    :class:`~pywsg.errors.WsgError` otherwise (e.g. ``AbortedError`` after ``stop()``).
+    """
+
+    def __init__(self, gripper: AsyncGripper, call: Call[Any], final: _AWaiter | None,
+                 frame: Frame | None = None) -> None:
+        self._gripper = gripper
+        self._call = call
+        self._final = final
+        self._frame = frame  # set when the motion is already over
+        self._error: BaseException | None = None
+        self._checked = False
+        self.command = Command(call.command_id)
+        self.started = time.monotonic()
+
+    def done(self) -> bool:
+        """True once the final frame arrived (or the connection failed)."""
+        return self._frame is not None or (self._final is not None and self._final.done)
+
+    @property
+    def status(self) -> Status | int | None:
+        """The final status, or None while the motion runs."""
+        if self._final is not None and self._final.frame is not None:
+            return status_of(self._final.frame)
+        return status_of(self._frame) if self._frame is not None else None
+
+    async def wait(self, timeout: float | None = None) -> None:
+        """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
+        if not self._checked:
+            await self._settle(self._gripper.motion_timeout if timeout is None else timeout)
+        if self._error is not None:
+            raise self._error
+
+    async def _settle(self, timeout: float) -> None:
+        w = self._final
+        if self._frame is None and w is not None:
+            if not w.done:
+                try:
+                    await asyncio.wait_for(asyncio.shield(w.fut), timeout)
+                except builtins.TimeoutError:
+                    raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
+                                       f"motion not finished within {timeout:g} s", from_device=False) from None
+            if w.error is not None:
+                self._error = w.error
+                self._checked = True
+                return
+            self._frame = w.frame
+        assert self._frame is not None
+        if status_of(self._frame) != Status.E_SUCCESS:
+            flags = await self._gripper._flags_quietly()
+            self._error = raise_for(self._call, self._frame, flags)
+        self._checked = True
+
+    def __await__(self) -> Any:
+        return self.wait().__await__()
+
+    def __repr__(self) -> str:
+        return f"<AsyncMotion {self.command.name} {'done' if self.done() else 'running'}>"
+
+
+class AsyncStream(Sink):
+    """Auto-update samples as an async iterator: ``async for sample in stream``.
+
+    Keeps up to ``maxlen`` samples not yet consumed (older ones are counted in ``dropped``).
+    ``await stream.close()`` (or ``async with``) ends the subscription.
+    """
+
+    def __init__(self, gripper: AsyncGripper, command: Command, maxlen: int = 10000) -> None:
+        self._gripper = gripper
+        self.command = command
+        self._q: collections.deque[Sample] = collections.deque()
+        self._maxlen = maxlen
+        self._waiter: asyncio.Future[None] | None = None
+        self._end: BaseException | None = None
+        self._ended = False
+        self.received = 0
+        self.dropped = 0
+        self.callbacks: list[Callable[[Sample], None]] = []
+
+    def push(self, frame: Frame) -> None:
+        s = sample_of(frame, time.monotonic())
+        if s is None:
+            return
+        self.received += 1
+        for cb in self.callbacks:
+            cb(s)
+        if len(self._q) >= self._maxlen:
+            self._q.popleft()
+            self.dropped += 1
+        self._q.append(s)
+        w = self._waiter
+        if w is not None and not w.done():
+            w.set_result(None)
+
+    def end(self, exc: BaseException | None) -> None:
+        self._ended = True
+        self._end = exc
+        w = self._waiter
+        if w is not None and not w.done():
+            w.set_result(None)
+
+    def __aiter__(self) -> AsyncStream:
+        return self
+
+    async def __anext__(self) -> Sample:
+        while not self._q:
+            if self._ended:
+                if self._end is not None:
+                    raise self._end
+                raise StopAsyncIteration
+            self._waiter = asyncio.get_running_loop().create_future()
+            try:
+                await self._waiter
+            finally:
+                self._waiter = None
+        return self._q.popleft()
+
+    async def get(self, timeout: float | None = None) -> Sample:
+        """The next sample (waits at most ``timeout`` s; TimeoutError after that)."""
+        try:
+            return await asyncio.wait_for(self.__anext__(), timeout)
+        except builtins.TimeoutError:
+            raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
+                               from_device=False) from None
+
+    def drain(self) -> list[Sample]:
+        """All samples received and not yet consumed."""
+        out = list(self._q)
+        self._q.clear()
+        return out
+
+    async def close(self) -> None:
+        if not self._ended:
+            self.end(None)
+            await self._gripper._unsubscribe(self)
+
+    async def __aenter__(self) -> AsyncStream:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+
+class AsyncFinger:
+    """Finger 1 or 2: ``await g.finger(1).info()``."""
+
+    def __init__(self, gripper: AsyncGripper, n: int) -> None:
+        calls.finger_info(n)  # validates n
+        self._g = gripper
+        self.n = n
+
+    async def info(self) -> FingerInfo:
+        """60h/70h: finger type and data frame size (bytes)."""
+        return await self._g._run(calls.finger_info(self.n))
+
+    async def flags(self) -> FingerFlag:
+        """61h/71h: finger state flags."""
+        return await self._g._run(calls.finger_flags(self.n))
+
+    async def power(self, on: bool = True, *, timeout: float | None = None) -> None:
+        """62h/72h: switch the finger's power (switching on takes ~500 ms: waits for it)."""
+        await self._g._run_motion(calls.finger_power(self.n, on), True, timeout)
+
+    async def data(self) -> bytes:
+        """63h/73h: the finger's current data frame (layout depends on the finger)."""
+        return await self._g._run(calls.finger_data(self.n))
+
+
+class AsyncGripper:
+    """asyncio driver for a WSG gripper. Open with ``await AsyncGripper.open(url)`` or
+    ``async with AsyncGripper(url) as g``.
+
+    ``timeout``: s to wait for an immediate reply; ``motion_timeout``: s to wait for a motion's
+    final frame; ``reconnect``: True or a :class:`ReconnectPolicy` to reconnect automatically after
+    a dropped connection (subscriptions are restored; a FAST STOP found is reported through
+    ``on_reconnect`` and the log, never acknowledged).
+    """
+
+    def __init__(self, url: str | Endpoint, *, timeout: float = DEFAULT_TIMEOUT,
+                 motion_timeout: float = DEFAULT_MOTION_TIMEOUT, connect_timeout: float = 5.0,
+                 reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True) -> None:
+        self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.connect_timeout = connect_timeout
+        self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
+        self.verify_checksum = verify_checksum
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._transport: AsyncTransport | None = None
+        self._parser = FrameParser(verify_checksum)
+        self._demux = Demux(time.monotonic)
+        self._comm = CommLog()
+        self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
+        self._streams: dict[Command, list[AsyncStream]] = {}
+        self._closing = False
+        self._reconnect_task: asyncio.Task[None] | None = None
+        self.on_reconnect: Callable[[SystemFlag], None] | None = None
+        """Called with the system flags found after every reconnection."""
+        self.on_connection_lost: Callable[[BaseException | None], None] | None = None
+        self.last_error: BaseException | None = None
+
+    # ------------------------------------------------------------------ connection
+    @classmethod
+    async def open(cls, url: str | Endpoint, **kwargs: Any) -> AsyncGripper:
+        """Connect and return the driver."""
+        g = cls(url, **kwargs)
+        await g.connect()
+        return g
+
+    @property
+    def connected(self) -> bool:
+        return self._transport is not None
+
+    @property
+    def on_frame(self) -> CommHook | None:
+        """Communication log hook: called with a :class:`CommEntry` for every frame in and out."""
+        return self._comm.hook
+
+    @on_frame.setter
+    def on_frame(self, hook: CommHook | None) -> None:
+        self._comm.hook = hook
+
+    @property
+    def demux(self) -> Demux:
+        """The demultiplexer (counters ``unsolicited``, ``late``)."""
+        return self._demux
+
+    async def connect(self) -> None:
+        """Open the transport named by the URL."""
+        if self._transport is not None:
+            return
+        self._loop = asyncio.get_running_loop()
+        self._closing = False
+        self._parser = FrameParser(self.verify_checksum)
+        ep = self.endpoint
+        try:
+            if ep.scheme == "tcp":
+                self._transport = await TcpTransport.connect(ep, self._on_data, self._on_lost, self.connect_timeout)
+            elif ep.scheme == "udp":
+                self._transport = await UdpTransport.connect(ep, self._on_datagram, self._on_lost,
+                                                             self.connect_timeout)
+            else:
+                self._transport = await SerialTransport.connect(ep, self._on_data, self._on_lost,
+                                                                self.connect_timeout)
+        except (OSError, builtins.TimeoutError) as exc:
+            raise ConnectionLostError(f"cannot connect to {ep}: {exc or type(exc).__name__}") from exc
+        log.debug("connected to %s", ep)
+
+    async def close(self) -> None:
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close."""
+        self._closing = True
+        if self._reconnect_task is not None:
+            self._reconnect_task.cancel()
+            self._reconnect_task = None
+        t = self._transport
+        if t is None:
+            return
+        if self.endpoint.scheme == "tcp":
+            try:
+                await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+            except WsgError as exc:
+                log.debug("disconnect announcement: %s", exc)
+        self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True)
+
+    def _drop_transport(self, exc: ConnectionLostError, end_streams: bool) -> None:
+        t, self._transport = self._transport, None
+        if t is not None:
+            t.close()
+        self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid), end_streams=end_streams)
+        if end_streams:
+            self._streams.clear()
+            self._subs.clear()
+
+    async def reconnect(self) -> SystemFlag:
+        """Close (announcing the disconnect if the link still works) and connect again; restore the
+        subscriptions. Returns the system flags found; a FAST STOP is reported (log warning,
+        ``on_reconnect``), never acknowledged."""
+        if self._transport is not None:
+            if self.endpoint.scheme == "tcp":
+                try:
+                    await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+                except WsgError:
+                    pass
+            self._drop_transport(ConnectionLostError("reconnecting"), end_streams=False)
+        await self.connect()
+        for cmd, (period, change_only) in list(self._subs.items()):
+            await self._run(calls.subscribe(cmd, period, change_only))
+        flags = await self.system_state()
+        if flags & SystemFlag.SF_FAST_STOP:
+            log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
+        else:
+            log.info("reconnected to %s", self.endpoint)
+        if self.on_reconnect is not None:
+            self.on_reconnect(flags)
+        return flags
+
+    async def _auto_reconnect(self) -> None:
+        policy = self.policy
+        assert policy is not None
+        delay = policy.delay
+        for attempt in range(1, policy.attempts + 1):
+            await asyncio.sleep(delay)
+            try:
+                await self.reconnect()
+                return
+            except WsgError as exc:
+                log.info("reconnect attempt %d to %s failed: %s", attempt, self.endpoint, exc)
+                self._drop_transport(ConnectionLostError(str(exc)), end_streams=False)
+                delay = min(delay * 2, policy.max_delay)
+        log.error("giving up reconnecting to %s", self.endpoint)
+        self._demux.fail_all(lost("connection lost; reconnecting failed"), end_streams=True)
+        self._streams.clear()
+        self._subs.clear()
+
+    async def __aenter__(self) -> AsyncGripper:
+        await self.connect()
+        return self
+
+    async def __aexit__(self, et: type[BaseException] | None, ev: BaseException | None,
+                        tb: TracebackType | None) -> None:
+        await self.close()
+
+    # ------------------------------------------------------------------ bytes in
+    def _on_data(self, data: memoryview) -> None:
+        for ev in self._parser.feed(data):
+            self._on_event(ev)
+
+    def _on_datagram(self, data: bytes) -> None:
+        for ev in parse_datagram(data, self.verify_checksum):
+            self._on_event(ev)
+
+    def _on_event(self, ev: Frame | ParseError) -> None:
+        if isinstance(ev, Frame):
+            if self._comm.active:
+                self._comm.frame(RX, ev)
+            self._demux.feed(ev)
+            return
+        self._comm.error(RX, ev)
+        if isinstance(ev, ChecksumMismatch):
+            self._demux.feed_bad_checksum(ev, bad_checksum)
+        elif not isinstance(ev, GarbageSkipped):
+            log.warning("bad input from the gripper: %s", ev.message)
+
+    def _on_lost(self, exc: BaseException | None) -> None:
+        if self._transport is None:
+            return
+        reason = f"connection to {self.endpoint} lost" + (f": {exc}" if exc else "")
+        if not self._closing:
+            log.warning("%s", reason)
+        self.last_error = exc
+        auto = self.policy is not None and not self._closing
+        self._drop_transport(ConnectionLostError(reason), end_streams=not auto)
+        if self.on_connection_lost is not None:
+            self.on_connection_lost(exc)
+        if auto and self._reconnect_task is None and self._loop is not None:
+            self._reconnect_task = self._loop.create_task(self._auto_reconnect())
+            self._reconnect_task.add_done_callback(self._reconnect_done)
+
+    def _reconnect_done(self, _t: asyncio.Task[None]) -> None:
+        self._reconnect_task = None
+
+    # ------------------------------------------------------------------ requests
+    def _transport_or_raise(self, cid: int) -> AsyncTransport:
+        t = self._transport
+        if t is None:
+            raise ConnectionLostError("not connected" if not self.last_error else
+                                      f"not connected (last error: {self.last_error})", cid)
+        return t
+
+    async def _await_reconnect(self) -> None:
+        task = self._reconnect_task
+        if task is not None and self._transport is None:
+            try:
+                await asyncio.wait_for(asyncio.shield(task), self.connect_timeout)
+            except (builtins.TimeoutError, asyncio.CancelledError):
+                pass
+
+    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, _AWaiter | None]:
+        """Send one request; return its first reply and the waiter of a pending final."""
+        if self._transport is None:
+            await self._await_reconnect()
+        t = self._transport_or_raise(call.command_id)
+        loop = self._loop
+        assert loop is not None
+        final = _AWaiter(call.command_id, loop) if call.pending else None
+        w = _AWaiter(call.command_id, loop, final)
+        self._demux.expect(w)
+        if self._comm.active:
+            self._comm.frame(TX, Frame(call.command_id, call.wire[6:-2]))
+        t.write(call.wire)
+        return await self._wait(w, self.timeout if timeout is None else timeout), final
+
+    async def _wait(self, w: _AWaiter, timeout: float) -> Frame:
+        loop = self._loop
+        assert loop is not None
+        handle = loop.call_later(timeout, self._expire, w, timeout)
+        try:
+            await w.fut
+        except asyncio.CancelledError:
+            self._demux.abandon(w)
+            raise
+        finally:
+            handle.cancel()
+        if w.error is not None:
+            raise w.error
+        assert w.frame is not None
+        return w.frame
+
+    def _expire(self, w: _AWaiter, timeout: float) -> None:
+        if not w.done:
+            w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s",
+                                from_device=False))
+            self._demux.abandon(w)
+
+    async def _run(self, call: Call[T], timeout: float | None = None) -> T:
+        """An immediate command: the decoded result, or the matching WsgError."""
+        frame, _ = await self._exchange(call, timeout)
+        return await self._result(call, frame)
+
+    async def _result(self, call: Call[T], frame: Frame) -> T:
+        st = status_of(frame)
+        if st == Status.E_SUCCESS:
+            return decode_success(call, frame)
+        if st in call.none_on:
+            return None  # type: ignore[return-value]
+        flags = await self._flags_quietly() if needs_flags(call, st) else None
+        raise raise_for(call, frame, flags)
+
+    async def _run_motion(self, call: Call[Any], wait: bool, timeout: float | None) -> AsyncMotion:
+        frame, final = await self._exchange(call, None)
+        st = status_of(frame)
+        if st == Status.E_CMD_PENDING:
+            motion = AsyncMotion(self, call, final)
+        else:
+            if final is not None:
+                self._demux.forget_final(final)
+            if st != Status.E_SUCCESS:
+                flags = await self._flags_quietly()
+                raise raise_for(call, frame, flags)
+            motion = AsyncMotion(self, call, None, frame)
+        if wait:
+            await motion.wait(timeout)
+        return motion
+
+    async def _flags_quietly(self) -> SystemFlag | None:
+        """The system flags for an error report, or None if they cannot be read."""
+        if self._transport is None:
+            return None
+        try:
+            frame, _ = await self._exchange(calls.system_state(), min(self.timeout, 0.5))
+            if status_of(frame) == Status.E_SUCCESS:
+                return decode_success(calls.system_state(), frame)
+        except WsgError:
+            pass
+        return None
+
+    async def request(self, command_id: int, payload: bytes = b"", *, check: bool = True,
+                      timeout: float | None = None) -> Reply:
+        """Raw request for custom commands (e.g. an on-board script's ID). Waits for a final frame
+        after E_CMD_PENDING. With ``check`` an error status raises; else it is in ``Reply.status``."""
+        call = calls.raw(command_id, payload)
+        frame, final = await self._exchange(call, timeout)
+        if status_of(frame) == Status.E_CMD_PENDING and final is not None:
+            frame = await self._wait(final, self.motion_timeout if timeout is None else timeout)
+        elif final is not None:
+            self._demux.forget_final(final)
+        st = status_of(frame)
+        if check and st != Status.E_SUCCESS:
+            raise raise_for(call, frame, None)
+        return Reply(frame.command_id, st, frame.params)
+
+    # ------------------------------------------------------------------ connection commands
+    async def loop(self, data: bytes = b"pywsg") -> bytes:
+        """06h Loop: the gripper returns ``data`` (at most 256 bytes)."""
+        return await self._run(calls.loop(data))
+
+    # ------------------------------------------------------------------ motion
+    async def home(self, direction: HomingDirection | int | str | None = None, *, wait: bool = True,
+                   timeout: float | None = None) -> AsyncMotion:
+        """20h Homing: reference the fingers (direction None/0: default, 1 positive, 2 negative)."""
+        return await self._run_motion(calls.homing(direction), wait, timeout)
+
+    async def move(self, width: float, speed: float, relative: bool = False, stop_on_block: bool = False, *,
+                   wait: bool = True, timeout: float | None = None) -> AsyncMotion:
+        """21h Pre-position: move to ``width`` mm (or by it, ``relative``) at ``speed`` mm/s."""
+        return await self._run_motion(calls.preposition(width, speed, relative, stop_on_block), wait, timeout)
+
+    async def grip(self, width: float, speed: float, force: float | None = None, *, wait: bool = True,
+                   timeout: float | None = None) -> AsyncMotion:
+        """25h Grip Part of nominal ``width`` mm at ``speed`` mm/s; ``force`` N sets the force limit first.
+        Raises NoPartError when no part is found within the clamping travel."""
+        if force is not None:
+            await self.set_force_limit(force)
+        return await self._run_motion(calls.grip(width, speed), wait, timeout)
+
+    async def release(self, width: float, speed: float, *, wait: bool = True,
+                      timeout: float | None = None) -> AsyncMotion:
+        """26h Release Part: open to ``width`` mm at ``speed`` mm/s."""
+        return await self._run_motion(calls.release(width, speed), wait, timeout)
+
+    async def stop(self) -> None:
+        """22h Stop: end any motion (that motion ends with AbortedError)."""
+        await self._run(calls.stop())
+
+    async def fast_stop(self) -> None:
+        """23h FAST STOP: motion commands are refused until ``acknowledge()``."""
+        await self._run(calls.fast_stop())
+
+    async def acknowledge(self) -> None:
+        """24h Acknowledge FAST STOP (sends the key "ack")."""
+        await self._run(calls.acknowledge())
+
+    # ------------------------------------------------------------------ motion configuration
+    async def set_acceleration(self, acceleration: float) -> None:
+        """30h: acceleration in mm/s² (clamped by the gripper to its limits)."""
+        await self._run(calls.set_acceleration(acceleration))
+
+    async def acceleration(self) -> float:
+        """31h: the set acceleration, mm/s²."""
+        return await self._run(calls.acceleration())
+
+    async def set_force_limit(self, force: float) -> None:
+        """32h: gripping force limit in N (clamped to the nominal or overdrive force)."""
+        await self._run(calls.set_force_limit(force))
+
+    async def force_limit(self) -> float:
+        """33h: the force limit, N."""
+        return await self._run(calls.force_limit())
+
+    async def set_soft_limits(self, minus: float, plus: float) -> None:
+        """34h: soft limits in mm (a motion beyond them: RangeError)."""
+        await self._run(calls.set_soft_limits(minus, plus))
+
+    async def soft_limits(self) -> SoftLimits | None:
+        """35h: the soft limits in mm, or None when none are set."""
+        return await self._run(calls.soft_limits())
+
+    async def clear_soft_limits(self) -> None:
+        """36h: clear the soft limits."""
+        await self._run(calls.clear_soft_limits())
+
+    async def overdrive(self, enable: bool = True) -> None:
+        """37h: enable (or disable) force overdrive mode."""
+        await self._run(calls.overdrive(enable))
+
+    async def tare(self) -> None:
+        """38h: zero the force sensor (not while HOLDING: AccessDeniedError)."""
+        await self._run(calls.tare())
+
+    # ------------------------------------------------------------------ state
+    async def system_state(self) -> SystemFlag:
+        """40h: the system state flags."""
+        return await self._run(calls.system_state())
+
+    async def gripper_state(self) -> GripperState | int:
+        """41h: the grasping state (IDLE, HOLDING, NO_PART, ...)."""
+        return await self._run(calls.gripper_state())
+
+    async def statistics(self, reset: bool = False) -> Statistics:
+        """42h: grips total / no part / part lost (``reset`` clears them after reading)."""
+        return await self._run(calls.statistics(reset))
+
+    async def width(self) -> float:
+        """43h: opening width, mm."""
+        return await self._run(calls.width())
+
+    async def speed(self) -> float:
+        """44h: finger speed, mm/s."""
+        return await self._run(calls.speed())
+
+    async def force(self) -> float:
+        """45h: gripping force, N."""
+        return await self._run(calls.force())
+
+    async def temperature(self) -> float:
+        """46h: device temperature, °C."""
+        return await self._run(calls.temperature())
+
+    async def state(self) -> State:
+        """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
+        w, s, f, gs, fl, te = await asyncio.gather(
+            self.width(), self.speed(), self.force(), self.gripper_state(), self.system_state(),
+            self.temperature())
+        return State(w, s, f, gs, fl, te)
+
+    # ------------------------------------------------------------------ system
+    async def info(self) -> SystemInfo:
+        """50h: device type, hardware revision, firmware version, serial number."""
+        return await self._run(calls.info())
+
+    async def set_tag(self, tag: str) -> None:
+        """51h: set the device tag (at most 64 printable ASCII characters)."""
+        await self._run(calls.set_tag(tag))
+
+    async def tag(self) -> str | None:
+        """52h: the device tag, or None when none is set."""
+        return await self._run(calls.tag())
+
+    async def limits(self) -> Limits:
+        """53h: stroke (mm), speed (mm/s), acceleration (mm/s²) and force (N) limits."""
+        return await self._run(calls.limits())
+
+    def finger(self, n: int) -> AsyncFinger:
+        """Finger 1 or 2 (60h..63h, 70h..73h)."""
+        return AsyncFinger(self, n)
+
+    # ------------------------------------------------------------------ streams
+    async def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False,
+                        maxlen: int = 10000) -> AsyncStream:
+        """Auto-update stream of ``what`` ("system_state", "gripper_state", "width", "speed", "force"
+        or the command ID), one packet at most every ``period`` s (>= 0.01), only on change if
+        ``change_only``. The first sample is the current value."""
+        cmd = stream_id(what)
+        stream = AsyncStream(self, cmd, maxlen)
+        self._streams.setdefault(cmd, []).append(stream)
+        self._demux.add_stream(cmd, stream)
+        try:
+            await self._run(calls.subscribe(cmd, period, change_only))
+        except BaseException:
+            self._demux.remove_stream(cmd, stream)
+            self._streams[cmd].remove(stream)
+            raise
+        self._subs[cmd] = (period, change_only)
+        return stream
+
+    async def _unsubscribe(self, stream: AsyncStream) -> None:
+        cmd = stream.command
+        self._demux.remove_stream(cmd, stream)
+        lst = self._streams.get(cmd, [])
+        if stream in lst:
+            lst.remove(stream)
+        if not lst:
+            self._streams.pop(cmd, None)
+            self._subs.pop(cmd, None)
+            if self._transport is not None:
+                try:
+                    await self._run(calls.unsubscribe(cmd))
+                except WsgError as exc:
+                    log.debug("unsubscribe %s: %s", cmd.name, exc)
+
+    async def stream(self, what: str | int, period: float = 0.01,
+                     change_only: bool = False) -> AsyncIterator[Sample]:
+        """``async for s in g.stream("width")``: subscribe, yield samples, unsubscribe at the end."""
+        s = await self.subscribe(what, period, change_only)
+        try:
+            async for sample in s:
+                yield sample
+        finally:
+            await s.close()
+
+    def __repr__(self) -> str:
+        return f"<AsyncGripper {self.endpoint} {'connected' if self.connected else 'closed'}>"

@@ -1,0 +1,775 @@
+"""``Gripper``: the blocking driver, for scripts and notebooks (no event loop needed).
+
+I/O design: plain blocking sockets. The thread that waits for a reply reads the socket itself
+(no thread hop on the common path); when several threads wait, one reads and hands frames to the
+others. A background reader thread runs only while auto-update streams are subscribed, and stream
+callbacks run on their own thread, so a callback may call the gripper (e.g. ``stop()``).
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable, Iterator
+from types import TracebackType
+from typing import Any, TypeVar
+
+from ..errors import ConnectionLostError, TimeoutError, WsgError
+from ..protocol import (
+    ChecksumMismatch,
+    Command,
+    FingerFlag,
+    Frame,
+    FrameParser,
+    GarbageSkipped,
+    GripperState,
+    HomingDirection,
+    ParseError,
+    Status,
+    SystemFlag,
+    parse_datagram,
+)
+from . import calls
+from .aio import ReconnectPolicy
+from .calls import Call
+from .commlog import RX, TX, CommHook, CommLog
+from .core import (
+    DEFAULT_MOTION_TIMEOUT,
+    DEFAULT_TIMEOUT,
+    bad_checksum,
+    decode_success,
+    needs_flags,
+    raise_for,
+    sample_of,
+    status_of,
+    stream_id,
+)
+from .demux import Demux, Sink, Waiter
+from .sync_transport import SyncTransport, open_sync
+from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
+from .url import Endpoint, parse_url
+
+log = logging.getLogger("pywsg.client")
+T = TypeVar("T")
+
+_PUMP_SLICE = 0.05  # s the background reader blocks at a time (how fast it notices close())
+
+
+class Motion:
+    """A running motion (``wait=False``): ``motion.wait(timeout)`` returns None on success and raises
+    the matching :class:`~pywsg.errors.WsgError` otherwise."""
+
+    def __init__(self, gripper: Gripper, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
+        self._gripper = gripper
+        self._call = call
+        self._final = final
+        self._frame = frame
+        self._error: BaseException | None = None
+        self._checked = False
+        self.command = Command(call.command_id)
+        self.started = time.monotonic()
+
+    def done(self) -> bool:
+        """True once the final frame arrived (or the connection failed)."""
+        return self._frame is not None or (self._final is not None and self._final.done)
+
+    @property
+    def status(self) -> Status | int | None:
+        if self._final is not None and self._final.frame is not None:
+            return status_of(self._final.frame)
+        return status_of(self._frame) if self._frame is not None else None
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
+        if not self._checked:
+            self._settle(self._gripper.motion_timeout if timeout is None else timeout)
+        if self._error is not None:
+            raise self._error
+
+    def _settle(self, timeout: float) -> None:
+        w = self._final
+        if self._frame is None and w is not None:
+            if not w.done:
+                self._gripper._wait_for(w, timeout, abandon=False)
+            if not w.done:
+                raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
+                                   f"motion not finished within {timeout:g} s", from_device=False)
+            if w.error is not None:
+                self._error = w.error
+                self._checked = True
+                return
+            self._frame = w.frame
+        assert self._frame is not None
+        if status_of(self._frame) != Status.E_SUCCESS:
+            self._error = raise_for(self._call, self._frame, self._gripper._flags_quietly())
+        self._checked = True
+
+    def __repr__(self) -> str:
+        return f"<Motion {self.command.name} {'done' if self.done() else 'running'}>"
+
+
+_END = object()
+
+
+class Stream(Sink):
+    """Auto-update samples: iterate (``for s in stream``, blocks), ``get(timeout)``, ``drain()``, or
+    register ``callback``\\s. Keeps up to ``maxlen`` unread samples (older ones counted in ``dropped``)."""
+
+    def __init__(self, gripper: Gripper, command: Command, maxlen: int = 10000,
+                 callback: Callable[[Sample], None] | None = None) -> None:
+        self._gripper = gripper
+        self.command = command
+        self._q: collections.deque[Sample] = collections.deque()
+        self._cv = threading.Condition(threading.Lock())
+        self._maxlen = maxlen
+        self._ended = False
+        self._end: BaseException | None = None
+        self.received = 0
+        self.dropped = 0
+        self.callbacks: list[Callable[[Sample], None]] = [callback] if callback else []
+
+    def push(self, frame: Frame) -> None:  # called on the reading thread, under the gripper's lock
+        s = sample_of(frame, time.monotonic())
+        if s is None:
+            return
+        with self._cv:
+            self.received += 1
+            if len(self._q) >= self._maxlen:
+                self._q.popleft()
+                self.dropped += 1
+            self._q.append(s)
+            self._cv.notify_all()
+        if self.callbacks:
+            self._gripper._callback(self, s)
+
+    def end(self, exc: BaseException | None) -> None:
+        with self._cv:
+            self._ended = True
+            self._end = exc
+            self._cv.notify_all()
+
+    def get(self, timeout: float | None = None) -> Sample:
+        """The next sample; TimeoutError after ``timeout`` s; StopIteration-free: raises the end reason
+        (ConnectionLostError) or ``EOFError`` when the stream was closed."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._cv:
+            while not self._q:
+                if self._ended:
+                    raise self._end if self._end is not None else EOFError("stream closed")
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
+                                       from_device=False)
+                self._cv.wait(remaining)
+            return self._q.popleft()
+
+    def __iter__(self) -> Iterator[Sample]:
+        while True:
+            try:
+                yield self.get()
+            except EOFError:
+                return
+
+    def drain(self) -> list[Sample]:
+        with self._cv:
+            out = list(self._q)
+            self._q.clear()
+        return out
+
+    def close(self) -> None:
+        if not self._ended:
+            self.end(None)
+            self._gripper._unsubscribe(self)
+
+    def __enter__(self) -> Stream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Finger:
+    """Finger 1 or 2: ``g.finger(1).info()``."""
+
+    def __init__(self, gripper: Gripper, n: int) -> None:
+        calls.finger_info(n)
+        self._g = gripper
+        self.n = n
+
+    def info(self) -> FingerInfo:
+        """60h/70h: finger type and data frame size (bytes)."""
+        return self._g._run(calls.finger_info(self.n))
+
+    def flags(self) -> FingerFlag:
+        """61h/71h: finger state flags."""
+        return self._g._run(calls.finger_flags(self.n))
+
+    def power(self, on: bool = True, *, timeout: float | None = None) -> None:
+        """62h/72h: switch the finger's power (switching on takes ~500 ms: waits for it)."""
+        self._g._run_motion(calls.finger_power(self.n, on), True, timeout)
+
+    def data(self) -> bytes:
+        """63h/73h: the finger's current data frame."""
+        return self._g._run(calls.finger_data(self.n))
+
+
+class Gripper:
+    """Blocking driver for a WSG gripper: ``with Gripper("tcp://192.168.1.20") as g: g.home()``.
+
+    Same methods and arguments as :class:`~pywsg.client.aio.AsyncGripper`, without ``await``.
+    ``connect=False`` defers opening the connection to ``connect()`` / ``with``.
+    """
+
+    def __init__(self, url: str | Endpoint, *, timeout: float = DEFAULT_TIMEOUT,
+                 motion_timeout: float = DEFAULT_MOTION_TIMEOUT, connect_timeout: float = 5.0,
+                 reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
+                 connect: bool = True) -> None:
+        self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.connect_timeout = connect_timeout
+        self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
+        self.verify_checksum = verify_checksum
+        self._cv = threading.Condition(threading.Lock())
+        self._send_lock = threading.Lock()
+        self._reading = False
+        self._transport: SyncTransport | None = None
+        self._parser = FrameParser(verify_checksum)
+        self._demux = Demux(time.monotonic)
+        self._comm = CommLog()
+        self._subs: dict[Command, tuple[float, bool]] = {}
+        self._streams: dict[Command, list[Stream]] = {}
+        self._pump: threading.Thread | None = None
+        self._pump_stop = threading.Event()
+        self._cbq: queue.SimpleQueue[tuple[Stream, Sample] | None] = queue.SimpleQueue()
+        self._cb_thread: threading.Thread | None = None
+        self._closing = False
+        self.on_reconnect: Callable[[SystemFlag], None] | None = None
+        self.on_connection_lost: Callable[[BaseException | None], None] | None = None
+        self.last_error: BaseException | None = None
+        if connect:
+            self.connect()
+
+    # ------------------------------------------------------------------ connection
+    @classmethod
+    def open(cls, url: str | Endpoint, **kwargs: Any) -> Gripper:
+        return cls(url, **kwargs)
+
+    @property
+    def connected(self) -> bool:
+        return self._transport is not None
+
+    @property
+    def on_frame(self) -> CommHook | None:
+        """Communication log hook: called with a :class:`CommEntry` for every frame in and out."""
+        return self._comm.hook
+
+    @on_frame.setter
+    def on_frame(self, hook: CommHook | None) -> None:
+        self._comm.hook = hook
+
+    @property
+    def demux(self) -> Demux:
+        return self._demux
+
+    def connect(self) -> None:
+        if self._transport is not None:
+            return
+        try:
+            t = open_sync(self.endpoint, self.connect_timeout)
+        except OSError as exc:
+            raise ConnectionLostError(f"cannot connect to {self.endpoint}: {exc}") from exc
+        with self._cv:
+            self._parser = FrameParser(self.verify_checksum)
+            self._transport = t
+            self._closing = False
+        log.debug("connected to %s", self.endpoint)
+
+    def close(self) -> None:
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close."""
+        self._closing = True
+        if self._transport is not None and self.endpoint.scheme == "tcp":
+            try:
+                self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+            except WsgError as exc:
+                log.debug("disconnect announcement: %s", exc)
+        self._stop_pump()
+        self._drop(ConnectionLostError("connection closed by the client"), end_streams=True)
+        if self._cb_thread is not None:
+            self._cbq.put(None)
+            if self._cb_thread is not threading.current_thread():
+                self._cb_thread.join(2.0)
+            self._cb_thread = None
+
+    def _drop(self, exc: ConnectionLostError, end_streams: bool) -> None:
+        with self._cv:
+            t, self._transport = self._transport, None
+            self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid), end_streams=end_streams)
+            if end_streams:
+                self._streams.clear()
+                self._subs.clear()
+            self._cv.notify_all()
+        if t is not None:
+            t.close()
+
+    def reconnect(self) -> SystemFlag:
+        """Close (announcing the disconnect if the link still works) and connect again; restore the
+        subscriptions. Returns the system flags; a FAST STOP found is reported, never acknowledged."""
+        if self._transport is not None:
+            if self.endpoint.scheme == "tcp":
+                try:
+                    self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+                except WsgError:
+                    pass
+            self._drop(ConnectionLostError("reconnecting"), end_streams=False)
+        self.connect()
+        for cmd, (period, change_only) in list(self._subs.items()):
+            self._run(calls.subscribe(cmd, period, change_only))
+        flags = self.system_state()
+        if flags & SystemFlag.SF_FAST_STOP:
+            log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
+        else:
+            log.info("reconnected to %s", self.endpoint)
+        if self.on_reconnect is not None:
+            self.on_reconnect(flags)
+        return flags
+
+    def _auto_reconnect(self) -> bool:
+        policy = self.policy
+        if policy is None or self._closing:
+            return False
+        delay = policy.delay
+        for attempt in range(1, policy.attempts + 1):
+            time.sleep(delay)
+            if self._closing:
+                return False
+            try:
+                self.reconnect()
+                return True
+            except WsgError as exc:
+                log.info("reconnect attempt %d to %s failed: %s", attempt, self.endpoint, exc)
+                self._drop(ConnectionLostError(str(exc)), end_streams=False)
+                delay = min(delay * 2, policy.max_delay)
+        log.error("giving up reconnecting to %s", self.endpoint)
+        self._drop(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True)
+        return False
+
+    def __enter__(self) -> Gripper:
+        self.connect()
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, ev: BaseException | None, tb: TracebackType | None) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ reading
+    def _feed(self, data: bytes) -> None:
+        """Route received bytes (call with self._cv held)."""
+        t = self._transport
+        events = parse_datagram(data, self.verify_checksum) if t is not None and t.datagram else \
+            self._parser.feed(data)
+        for ev in events:
+            self._on_event(ev)
+
+    def _on_event(self, ev: Frame | ParseError) -> None:
+        if isinstance(ev, Frame):
+            if self._comm.active:
+                self._comm.frame(RX, ev)
+            self._demux.feed(ev)
+            return
+        self._comm.error(RX, ev)
+        if isinstance(ev, ChecksumMismatch):
+            self._demux.feed_bad_checksum(ev, bad_checksum)
+        elif not isinstance(ev, GarbageSkipped):
+            log.warning("bad input from the gripper: %s", ev.message)
+
+    def _lost(self, exc: BaseException | None) -> None:
+        reason = f"connection to {self.endpoint} lost" + (f": {exc}" if exc else "")
+        if not self._closing:
+            log.warning("%s", reason)
+        self.last_error = exc
+        self._drop(ConnectionLostError(reason), end_streams=self.policy is None or self._closing)
+        if self.on_connection_lost is not None:
+            self.on_connection_lost(exc)
+
+    def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True) -> None:
+        """Block until ``w`` is done or ``timeout`` s passed (then, with ``abandon``, fail it with
+        TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does."""
+        deadline = time.monotonic() + timeout
+        cv = self._cv
+        with cv:
+            while not w.done:
+                if not self._reading:
+                    self._reading = True
+                    break
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    if abandon:
+                        self._expire(w, timeout)
+                    return
+                cv.wait(remaining)
+            else:
+                return
+        # this thread reads
+        try:
+            while not w.done:
+                t = self._transport
+                if t is None:
+                    break
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    if abandon:
+                        with cv:
+                            self._expire(w, timeout)
+                    break
+                try:
+                    data = t.recv(remaining)
+                except OSError as exc:
+                    with cv:
+                        self._reading = False
+                    self._lost(exc)
+                    return
+                if data:
+                    with cv:
+                        self._feed(data)
+                        cv.notify_all()
+        finally:
+            with cv:
+                self._reading = False
+                cv.notify_all()
+
+    def _expire(self, w: Waiter, timeout: float) -> None:
+        if not w.done:
+            w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s", from_device=False))
+            self._demux.abandon(w)
+
+    # ------------------------------------------------------------------ requests
+    def _transport_or_raise(self, cid: int) -> SyncTransport:
+        t = self._transport
+        if t is None and self.policy is not None and not self._closing and self._pump is None:
+            self._auto_reconnect()
+            t = self._transport
+        if t is None and self._pump is not None and self.policy is not None:
+            deadline = time.monotonic() + self.connect_timeout
+            while self._transport is None and time.monotonic() < deadline and not self._closing:
+                time.sleep(0.01)
+            t = self._transport
+        if t is None:
+            raise ConnectionLostError("not connected" if not self.last_error else
+                                      f"not connected (last error: {self.last_error})", cid)
+        return t
+
+    def _send(self, t: SyncTransport, waiters: list[Waiter], wires: list[bytes]) -> None:
+        with self._cv:
+            for w in waiters:
+                self._demux.expect(w)
+        if self._comm.active:
+            for wire in wires:
+                self._comm.frame(TX, Frame(wire[3], wire[6:-2]))
+        try:
+            with self._send_lock:
+                if len(wires) == 1:
+                    t.send(wires[0])
+                else:
+                    t.send_frames(wires)
+        except OSError as exc:
+            self._lost(exc)
+
+    def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, Waiter | None]:
+        t = self._transport_or_raise(call.command_id)
+        final = Waiter(call.command_id) if call.pending else None
+        w = Waiter(call.command_id, final)
+        self._send(t, [w], [call.wire])
+        self._wait_for(w, self.timeout if timeout is None else timeout)
+        if w.error is not None:
+            raise w.error
+        assert w.frame is not None
+        return w.frame, final
+
+    def _run(self, call: Call[T], timeout: float | None = None) -> T:
+        frame, _ = self._exchange(call, timeout)
+        return self._result(call, frame)
+
+    def _result(self, call: Call[T], frame: Frame) -> T:
+        st = status_of(frame)
+        if st == Status.E_SUCCESS:
+            return decode_success(call, frame)
+        if st in call.none_on:
+            return None  # type: ignore[return-value]
+        raise raise_for(call, frame, self._flags_quietly() if needs_flags(call, st) else None)
+
+    def _run_motion(self, call: Call[Any], wait: bool, timeout: float | None) -> Motion:
+        frame, final = self._exchange(call, None)
+        st = status_of(frame)
+        if st == Status.E_CMD_PENDING:
+            motion = Motion(self, call, final)
+        else:
+            if final is not None:
+                with self._cv:
+                    self._demux.forget_final(final)
+            if st != Status.E_SUCCESS:
+                raise raise_for(call, frame, self._flags_quietly())
+            motion = Motion(self, call, None, frame)
+        if wait:
+            motion.wait(timeout)
+        return motion
+
+    def _flags_quietly(self) -> SystemFlag | None:
+        if self._transport is None:
+            return None
+        try:
+            frame, _ = self._exchange(calls.system_state(), min(self.timeout, 0.5))
+            if status_of(frame) == Status.E_SUCCESS:
+                return decode_success(calls.system_state(), frame)
+        except WsgError:
+            pass
+        return None
+
+    def request(self, command_id: int, payload: bytes = b"", *, check: bool = True,
+                timeout: float | None = None) -> Reply:
+        """Raw request for custom commands (e.g. an on-board script's ID). Waits for a final frame
+        after E_CMD_PENDING. With ``check`` an error status raises; else it is in ``Reply.status``."""
+        call = calls.raw(command_id, payload)
+        frame, final = self._exchange(call, timeout)
+        if status_of(frame) == Status.E_CMD_PENDING and final is not None:
+            limit = self.motion_timeout if timeout is None else timeout
+            self._wait_for(final, limit)
+            if final.error is not None:
+                raise final.error
+            assert final.frame is not None
+            frame = final.frame
+        elif final is not None:
+            with self._cv:
+                self._demux.forget_final(final)
+        st = status_of(frame)
+        if check and st != Status.E_SUCCESS:
+            raise raise_for(call, frame, None)
+        return Reply(frame.command_id, st, frame.params)
+
+    # ------------------------------------------------------------------ commands
+    def loop(self, data: bytes = b"pywsg") -> bytes:
+        """06h Loop: the gripper returns ``data`` (at most 256 bytes)."""
+        return self._run(calls.loop(data))
+
+    def home(self, direction: HomingDirection | int | str | None = None, *, wait: bool = True,
+             timeout: float | None = None) -> Motion:
+        """20h Homing: reference the fingers (direction None/0: default, 1 positive, 2 negative)."""
+        return self._run_motion(calls.homing(direction), wait, timeout)
+
+    def move(self, width: float, speed: float, relative: bool = False, stop_on_block: bool = False, *,
+             wait: bool = True, timeout: float | None = None) -> Motion:
+        """21h Pre-position: move to ``width`` mm (or by it, ``relative``) at ``speed`` mm/s."""
+        return self._run_motion(calls.preposition(width, speed, relative, stop_on_block), wait, timeout)
+
+    def grip(self, width: float, speed: float, force: float | None = None, *, wait: bool = True,
+             timeout: float | None = None) -> Motion:
+        """25h Grip Part of nominal ``width`` mm at ``speed`` mm/s; ``force`` N sets the force limit first.
+        Raises NoPartError when no part is found within the clamping travel."""
+        if force is not None:
+            self.set_force_limit(force)
+        return self._run_motion(calls.grip(width, speed), wait, timeout)
+
+    def release(self, width: float, speed: float, *, wait: bool = True, timeout: float | None = None) -> Motion:
+        """26h Release Part: open to ``width`` mm at ``speed`` mm/s."""
+        return self._run_motion(calls.release(width, speed), wait, timeout)
+
+    def stop(self) -> None:
+        """22h Stop: end any motion (that motion ends with AbortedError)."""
+        self._run(calls.stop())
+
+    def fast_stop(self) -> None:
+        """23h FAST STOP: motion commands are refused until ``acknowledge()``."""
+        self._run(calls.fast_stop())
+
+    def acknowledge(self) -> None:
+        """24h Acknowledge FAST STOP (sends the key "ack")."""
+        self._run(calls.acknowledge())
+
+    def set_acceleration(self, acceleration: float) -> None:
+        """30h: acceleration in mm/s² (clamped by the gripper to its limits)."""
+        self._run(calls.set_acceleration(acceleration))
+
+    def acceleration(self) -> float:
+        """31h: the set acceleration, mm/s²."""
+        return self._run(calls.acceleration())
+
+    def set_force_limit(self, force: float) -> None:
+        """32h: gripping force limit in N (clamped to the nominal or overdrive force)."""
+        self._run(calls.set_force_limit(force))
+
+    def force_limit(self) -> float:
+        """33h: the force limit, N."""
+        return self._run(calls.force_limit())
+
+    def set_soft_limits(self, minus: float, plus: float) -> None:
+        """34h: soft limits in mm (a motion beyond them: RangeError)."""
+        self._run(calls.set_soft_limits(minus, plus))
+
+    def soft_limits(self) -> SoftLimits | None:
+        """35h: the soft limits in mm, or None when none are set."""
+        return self._run(calls.soft_limits())
+
+    def clear_soft_limits(self) -> None:
+        """36h: clear the soft limits."""
+        self._run(calls.clear_soft_limits())
+
+    def overdrive(self, enable: bool = True) -> None:
+        """37h: enable (or disable) force overdrive mode."""
+        self._run(calls.overdrive(enable))
+
+    def tare(self) -> None:
+        """38h: zero the force sensor (not while HOLDING: AccessDeniedError)."""
+        self._run(calls.tare())
+
+    def system_state(self) -> SystemFlag:
+        """40h: the system state flags."""
+        return self._run(calls.system_state())
+
+    def gripper_state(self) -> GripperState | int:
+        """41h: the grasping state (IDLE, HOLDING, NO_PART, ...)."""
+        return self._run(calls.gripper_state())
+
+    def statistics(self, reset: bool = False) -> Statistics:
+        """42h: grips total / no part / part lost (``reset`` clears them after reading)."""
+        return self._run(calls.statistics(reset))
+
+    def width(self) -> float:
+        """43h: opening width, mm."""
+        return self._run(calls.width())
+
+    def speed(self) -> float:
+        """44h: finger speed, mm/s."""
+        return self._run(calls.speed())
+
+    def force(self) -> float:
+        """45h: gripping force, N."""
+        return self._run(calls.force())
+
+    def temperature(self) -> float:
+        """46h: device temperature, °C."""
+        return self._run(calls.temperature())
+
+    def state(self) -> State:
+        """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
+        cs: list[Call[Any]] = [calls.width(), calls.speed(), calls.force(), calls.gripper_state(),
+                               calls.system_state(), calls.temperature()]
+        t = self._transport_or_raise(cs[0].command_id)
+        ws = [Waiter(c.command_id) for c in cs]
+        self._send(t, ws, [c.wire for c in cs])
+        out: list[Any] = []
+        for c, w in zip(cs, ws, strict=True):
+            self._wait_for(w, self.timeout)
+            if w.error is not None:
+                raise w.error
+            assert w.frame is not None
+            out.append(self._result(c, w.frame))
+        return State(*out)
+
+    def info(self) -> SystemInfo:
+        """50h: device type, hardware revision, firmware version, serial number."""
+        return self._run(calls.info())
+
+    def set_tag(self, tag: str) -> None:
+        """51h: set the device tag (at most 64 printable ASCII characters)."""
+        self._run(calls.set_tag(tag))
+
+    def tag(self) -> str | None:
+        """52h: the device tag, or None when none is set."""
+        return self._run(calls.tag())
+
+    def limits(self) -> Limits:
+        """53h: stroke (mm), speed (mm/s), acceleration (mm/s²) and force (N) limits."""
+        return self._run(calls.limits())
+
+    def finger(self, n: int) -> Finger:
+        """Finger 1 or 2 (60h..63h, 70h..73h)."""
+        return Finger(self, n)
+
+    # ------------------------------------------------------------------ streams
+    def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False, *,
+                  callback: Callable[[Sample], None] | None = None, maxlen: int = 10000) -> Stream:
+        """Auto-update stream of ``what`` ("system_state", "gripper_state", "width", "speed", "force"
+        or the command ID), at most one packet every ``period`` s (>= 0.01), only on change if
+        ``change_only``. ``callback(sample)`` runs on a callback thread and may call the gripper."""
+        cmd = stream_id(what)
+        stream = Stream(self, cmd, maxlen, callback)
+        with self._cv:
+            self._streams.setdefault(cmd, []).append(stream)
+            self._demux.add_stream(cmd, stream)
+        try:
+            self._run(calls.subscribe(cmd, period, change_only))
+        except BaseException:
+            with self._cv:
+                self._demux.remove_stream(cmd, stream)
+                self._streams[cmd].remove(stream)
+            raise
+        self._subs[cmd] = (period, change_only)
+        self._start_pump()
+        return stream
+
+    def _unsubscribe(self, stream: Stream) -> None:
+        cmd = stream.command
+        with self._cv:
+            self._demux.remove_stream(cmd, stream)
+            lst = self._streams.get(cmd, [])
+            if stream in lst:
+                lst.remove(stream)
+            last = not lst
+            if last:
+                self._streams.pop(cmd, None)
+                self._subs.pop(cmd, None)
+        if last and self._transport is not None:
+            try:
+                self._run(calls.unsubscribe(cmd))
+            except WsgError as exc:
+                log.debug("unsubscribe %s: %s", cmd.name, exc)
+        if not self._streams:
+            self._stop_pump()
+
+    def _callback(self, stream: Stream, sample: Sample) -> None:
+        if self._cb_thread is None:
+            self._cb_thread = threading.Thread(target=self._run_callbacks, name="pywsg-callbacks", daemon=True)
+            self._cb_thread.start()
+        self._cbq.put((stream, sample))
+
+    def _run_callbacks(self) -> None:
+        while True:
+            item = self._cbq.get()
+            if item is None:
+                return
+            stream, sample = item
+            for cb in stream.callbacks:
+                try:
+                    cb(sample)
+                except Exception:
+                    log.exception("stream callback failed")
+
+    def _start_pump(self) -> None:
+        if self._pump is not None:
+            return
+        self._pump_stop.clear()
+        self._pump = threading.Thread(target=self._run_pump, name="pywsg-reader", daemon=True)
+        self._pump.start()
+
+    def _stop_pump(self) -> None:
+        p = self._pump
+        if p is None:
+            return
+        self._pump_stop.set()
+        if p is not threading.current_thread():
+            p.join(2.0)
+        self._pump = None
+
+    def _run_pump(self) -> None:
+        never = Waiter(-1)
+        while not self._pump_stop.is_set():
+            if self._transport is None:
+                if not self._auto_reconnect():
+                    return
+                continue
+            self._wait_for(never, _PUMP_SLICE, abandon=False)
+
+    def __repr__(self) -> str:
+        return f"<Gripper {self.endpoint} {'connected' if self.connected else 'closed'}>"
