@@ -1,0 +1,91 @@
+"""Diagnosis → Fieldbus Monitor: the I/O register view of the fieldbus manual (003 §6, figure 1).
+
+Each register image is shown byte by byte (index, hex) with the register it belongs to, decoded:
+flag bytes as named check boxes, numbers in mm, mm/s, N, the status code by name. Bytes come from
+the ``FieldbusController`` and are decoded by ``pywsg.fieldbus.image`` (the one place that knows the
+layout and byte order: docs/architecture.md, "Modbus register byte order").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..fieldbus.image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage
+from ..protocol import GState, Status, SystemFlag
+
+# Bit labels as in the screenshot (STOP/ACK, JOG+, ...), lowest bit first.
+CMD_BITS = ("MOVE", "GRIP", "RELEASE", "HOMING", "STOP/ACK", "FASTSTOP", "JOG+", "JOG-")
+GSTATE_BITS = tuple(str(m.name) for m in GState)
+
+
+def _flags(offset: int, name: str, value: int, labels: tuple[str, ...]) -> dict[str, Any]:
+    on = [bool(value >> i & 1) for i in range(len(labels))]
+    bits = [{"name": b, "on": o} for b, o in zip(labels, on, strict=True)]
+    return {"offset": offset, "size": 1, "name": name, "kind": "flags", "raw": value, "bits": bits,
+            "text": " ".join(b for b, o in zip(labels, on, strict=True) if o) or "-"}
+
+
+def _number(offset: int, name: str, raw: int, value: float, unit: str) -> dict[str, Any]:
+    return {"offset": offset, "size": 2, "name": name, "kind": "number", "raw": raw, "value": value,
+            "unit": unit, "text": f"{value:.2f} {unit}"}
+
+
+def output_registers(image: OutputImage, model: str) -> list[dict[str, Any]]:
+    """Output image (PLC → WSG), decoded: manual 003 §4.1.1."""
+    return [
+        _flags(0, "Command Flags", int(image.cmdflags), CMD_BITS),
+        _flags(1, "User Flags", image.if_flags, tuple(f"IF{i}" for i in range(1, 9))),
+        _number(2, "Width", image.width, image.width_mm, "mm"),
+        _number(4, "Speed", image.speed, image.speed_mm_s, "mm/s"),
+        _number(6, "Force Limit", image.force_limit, image.force_n(model), "N"),
+    ]
+
+
+def input_registers(image: InputImage, model: str) -> list[dict[str, Any]]:
+    """Input image (WSG → PLC), decoded: manual 003 §4.1.2."""
+    sysstate = int(image.sysstate)
+    status = image.status_code
+    return [
+        _flags(0, "Gripping State", int(image.gstate), GSTATE_BITS),
+        _flags(1, "User Flags", image.of_flags, tuple(f"OF{i}" for i in range(1, 9))),
+        {"offset": 2, "size": 4, "name": "System State", "kind": "sysstate", "raw": sysstate,
+         "text": f"{sysstate:08X}h", "flags": SystemFlag(sysstate).names()},
+        _number(6, "Current Opening Width", image.width, image.width_mm, "mm"),
+        _number(8, "Gripping Force", image.force, image.force_n(model), "N"),
+        {"offset": 10, "size": 2, "name": "Error Code", "kind": "status", "raw": image.status,
+         "text": status.name if isinstance(status, Status) else f"unknown ({status})"},
+    ]
+
+
+def _bytes_view(data: bytes, registers: list[dict[str, Any]]) -> dict[str, Any]:
+    return {
+        "available": True,
+        "hex": data.hex(" ").upper(),
+        "bytes": [{"index": i, "hex": f"{b:02X}h"} for i, b in enumerate(data)],
+        "registers": registers,
+    }
+
+
+_MISSING: dict[str, Any] = {"available": False, "hex": "", "bytes": [], "registers": []}
+
+
+def controller_of(fieldbus: Any) -> Any:
+    """A FieldbusController, given one or a ``serve_modbus`` handle (``.controller``)."""
+    return getattr(fieldbus, "controller", fieldbus)
+
+
+def fieldbus_view(fieldbus: Any) -> dict[str, Any]:
+    """What the Fieldbus Monitor page and its WebSocket messages carry."""
+    ctl = controller_of(fieldbus)
+    if ctl is None:
+        return {"available": False, "model": None, "output": _MISSING, "input": _MISSING}
+    model = str(getattr(ctl, "model", "wsg50"))
+    out = bytes(ctl.output_bytes)[:OUTPUT_SIZE]
+    inp = bytes(ctl.input_bytes())[:INPUT_SIZE]
+    return {
+        "available": True,
+        "model": model,
+        "status": int(getattr(ctl, "status", 0)),
+        "output": _bytes_view(out, output_registers(OutputImage.unpack(out), model)),
+        "input": _bytes_view(inp, input_registers(InputImage.unpack(inp), model)),
+    }

@@ -1,0 +1,1 @@
+"use strict"; // Help: static content; the live box is wired by common.js.

@@ -1,0 +1,1 @@
+"use strict"; // Simulation: the forms are wired by common.js.
