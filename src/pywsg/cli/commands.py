@@ -9,9 +9,13 @@ from __future__ import annotations
 import click
 
 from .gripper import GRIPPER_COMMANDS
+from .logcmd import log_cmd
+from .monitor import monitor
 from .send import send
 
 COMMANDS: dict[str, click.Command] = {
     **GRIPPER_COMMANDS,
     "send": send,
+    "log": log_cmd,
+    "monitor": monitor,
 }

@@ -21,11 +21,12 @@ MOTION_TIMEOUT = 60.0  # s: the driver's default wait for a motion's final frame
 
 
 def _driver() -> Any:
-    try:
-        from .. import AsyncGripper  # type: ignore[attr-defined]
-    except ImportError:
-        from ..client.aio import AsyncGripper
-    return AsyncGripper
+    import pywsg
+
+    found = getattr(pywsg, "AsyncGripper", None)  # the public name (docs/architecture.md)
+    if found is None:
+        from ..client.aio import AsyncGripper as found
+    return found
 
 
 async def _session(opts: Options, action: Action, motion_timeout: float) -> Any:
