@@ -1,0 +1,34 @@
+"""First smoke tests: homing, pre-position, grip, release on the injected clock."""
+
+from __future__ import annotations
+
+from devrig import Rig
+
+from pywsg.protocol import GripperState, Status, SystemFlag
+
+
+def test_homing_references_and_answers_pending_then_success(rig: Rig) -> None:
+    assert rig.status(0x21, flags=0, width=10.0, speed=50.0) == Status.E_NOT_INITIALIZED
+    assert rig.width() == 0.0
+    assert rig.status(0x20, direction=1) == Status.E_CMD_PENDING
+    assert rig.flags() & SystemFlag.SF_MOVING
+    out = rig.run(5)
+    assert [(f.command_id, f.status) for f in out] == [(0x20, Status.E_SUCCESS)]
+    assert rig.width() == 110.0
+    assert rig.flags() & SystemFlag.SF_REFERENCED
+
+
+def test_grip_cycle_with_part(homed: Rig) -> None:
+    r = homed
+    r.g.faults.place_part(40.0)
+    assert r.status(0x25, width=40.0, speed=100.0) == Status.E_CMD_PENDING
+    assert r.gstate() == GripperState.GRIPPING
+    out = r.run(5)
+    assert [(f.command_id, f.status) for f in out] == [(0x25, Status.E_SUCCESS)]
+    assert r.gstate() == GripperState.HOLDING
+    assert r.status(0x26, width=100.0, speed=100.0) == Status.E_CMD_PENDING
+    assert r.gstate() == GripperState.RELEASING
+    out = r.run(5)
+    assert [(f.command_id, f.status) for f in out] == [(0x26, Status.E_SUCCESS)]
+    assert r.gstate() == GripperState.IDLE
+    assert abs(r.width() - 100.0) < 1e-4
