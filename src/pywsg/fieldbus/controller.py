@@ -52,7 +52,7 @@ class FieldbusDevice(Protocol):
 
     def snapshot(self) -> Any: ...
 
-    def jog(self, direction: int, speed: float, force: float) -> Any: ...
+    def jog(self, direction: int, speed: float, force: float) -> Status | int: ...
 
 
 @dataclass(frozen=True)
@@ -76,6 +76,10 @@ class Event:
 
 
 def _model_name(gripper: Any) -> str:
+    profile = getattr(gripper, "profile", None)
+    key = getattr(profile, "key", None)
+    if isinstance(key, str):
+        return key
     for attr in ("model_name", "model"):
         value = getattr(gripper, attr, None)
         if isinstance(value, str):
@@ -118,13 +122,18 @@ class FieldbusController:
     def input_image(self) -> InputImage:
         """The input image now (SYSSTATE, WIDTH, FORCE fresh on every call)."""
         snap = self.gripper.snapshot()
-        if self._jog_dir and not self._jog_done and not snap.flags & SystemFlag.SF_MOVING \
-                and snap.gripper_state != GripperState.RELEASING:
-            # Jog reached an end position (or stopped on its own): report its result.
-            self._jog_done = True
-            self.status = int(Status.E_SUCCESS)
+        state = snap.gripper_state
+        if self._jog_dir and not self._jog_done:
+            if snap.flags & SystemFlag.SF_MOVING:
+                # 002 §4.7: the gripper state is RELEASING while jogging.
+                if state == GripperState.POSITIONING:
+                    state = GripperState.RELEASING
+            else:
+                # Jog reached an end position or an obstacle: report its result.
+                self._jog_done = True
+                self.status = int(Status.E_SUCCESS)
         of_flags = int(getattr(self.gripper, "script_of", 0)) & 0xFF
-        return InputImage.from_state(snap.gripper_state, SystemFlag(int(snap.flags)), float(snap.width),
+        return InputImage.from_state(state, SystemFlag(int(snap.flags)), float(snap.width),
                                      float(snap.force), self.status, of_flags, self.model)
 
     def input_bytes(self) -> bytes:
@@ -146,8 +155,12 @@ class FieldbusController:
         """Apply a new output image: edges, jog levels, FAST STOP rules."""
         old, new = self.output_image, image
         self.output_image = new
-        if hasattr(self.gripper, "script_if"):
-            self.gripper.script_if = new.if_flags
+        if new.if_flags != old.if_flags:
+            set_if = getattr(self.gripper, "set_script_if", None)
+            if set_if is not None:
+                set_if(new.if_flags)   # running scripts are told
+            else:
+                setattr(self.gripper, "script_if", new.if_flags)  # noqa: B010
         rising = CmdFlag(int(new.cmdflags) & ~int(old.cmdflags) & 0x3F)
         params_changed = (new.width, new.speed, new.force_limit) != (old.width, old.speed, old.force_limit)
         held = new.cmdflags & (CmdFlag.STOP_ACK | CmdFlag.FASTSTOP)
@@ -222,7 +235,10 @@ class FieldbusController:
         else:
             self._emit("STOP/ACK: stop")
         self._stop_jog()
-        self._run([(Command.STOP, {})])
+        if self._run([(Command.STOP, {})]) and self.gripper.snapshot().gripper_state != GripperState.IDLE:
+            # 002 §4.5: STOP/ACK sets the gripper state to IDLE (also from ERROR, HOLDING, NO_PART),
+            # which 22h alone does not do when no motion was running.
+            setattr(self.gripper, "gstate", GripperState.IDLE)  # noqa: B010 - device attribute, no setter
 
     def _raise_fast_stop(self, reason: str, status: Status) -> None:
         self._emit(f"FAST STOP: {reason}")
@@ -267,12 +283,12 @@ class FieldbusController:
         force = min(force, self._max_force())
         self._emit(f"JOG{'+' if direction > 0 else '-'} speed={speed:.2f} mm/s force={force:g} N")
         self._pending = None
-        try:
-            self.gripper.jog(direction, speed, force)
-        except Exception as exc:  # the device refuses (e.g. not referenced): report, don't crash the bus
-            log.info("jog refused: %s", exc)
-            status = getattr(exc, "status", Status.E_ACCESS_DENIED)
-            self._set_status(int(status))
+        if direction == self._jog_dir:
+            self.gripper.jog(0, 0.0, 0.0)   # the device keeps a running jog's speed: restart it
+        status = int(self.gripper.jog(direction, speed, force))
+        if status != Status.E_SUCCESS:
+            self._emit(f"JOG refused: {Status.describe(status)}")
+            self._set_status(status)
             self._jog_dir = 0
             return
         self._jog_dir = direction
