@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import socket
 import subprocess
 import sys
+import threading
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -45,3 +50,58 @@ def run_wsg(*args: str, url: str | None = None, input: str | None = None, timeou
 def wsg_exe() -> Path:
     assert WSG.exists(), f"{WSG} missing: pip install -e . in the venv"
     return WSG
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Sim:
+    """A `wsg sim` subprocess on free ports (TCP and UDP; UDP replies to the sender's port)."""
+
+    def __init__(self) -> None:
+        self.tcp_port = free_port()
+        self.udp_port = free_port(socket.SOCK_DGRAM)
+        argv = [str(WSG), "sim", "--no-uvloop", "--tcp-port", str(self.tcp_port), "--udp-port", str(self.udp_port),
+                "--udp-reply-port", "0", "--serial", "off", "--web-port", "0"]
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.banner: list[str] = []
+        deadline = time.monotonic() + 15
+        assert self.proc.stdout is not None
+        while time.monotonic() < deadline:
+            line = self.proc.stdout.readline()
+            if not line:
+                raise RuntimeError("wsg sim exited:\n" + "".join(self.banner))
+            self.banner.append(line)
+            if "UDP" in line:
+                break
+        threading.Thread(target=self._drain, daemon=True).start()
+        self.url = f"tcp://127.0.0.1:{self.tcp_port}"
+        self.udp_url = f"udp://127.0.0.1:{self.udp_port}?reply_port=0"
+
+    def _drain(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.banner.append(line)
+
+    def wsg(self, *args: str, **kw: Any) -> Result:
+        return run_wsg(*args, url=self.url, **kw)
+
+    def stop(self) -> None:
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[Sim]:
+    s = Sim()
+    try:
+        yield s
+    finally:
+        s.stop()
