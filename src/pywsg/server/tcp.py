@@ -1,10 +1,11 @@
 """TCP command interface (default port 1000).
 
-One client at a time holds the command interface and gets a device session (its auto-update
-subscriptions, its 07h disconnect announcement). Further connections are accepted and answered
-E_ACCESS_DENIED for every frame (SPEC-NOTES), so nobody steals motion control silently; they stay
-refused even after the controlling client leaves (the *next* connection gets control). Closing the
-controlling connection without 07h raises FAST STOP unless that setting is off (device rule).
+Each connection gets a device session (its auto-update subscriptions, its 07h disconnect
+announcement). The device lets one TCP session at a time hold the command interface; a further
+connection is accepted and every frame it sends is answered E_ACCESS_DENIED (SPEC-NOTES), so nobody
+steals motion control silently; it stays refused even after the controlling client leaves (the *next*
+connection gets control). Closing the controlling connection without 07h raises FAST STOP unless that
+setting is off (device rule). Refused connections that stay silent are closed after a while.
 
 Every write holds whole frames (public clients read field by field), TCP_NODELAY is on, and output
 is bounded (see :class:`~pywsg.server.limits.Limits`).
@@ -18,8 +19,7 @@ import socket
 import time
 from typing import Any
 
-from ..protocol import Frame, FrameParser, Status, command_name
-from ..protocol.catalog import request_max_payload
+from ..protocol import Frame
 from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits, droppable
 from .scheduler import DeviceRunner, Scheduler
@@ -53,7 +53,8 @@ class TcpConnection(asyncio.Protocol):
         self.transport: asyncio.Transport | None = None
         self.session: Any = None
         self.peer = "?"
-        self.refused: FrameParser | None = None
+        self.refused = False
+        """Another client holds the command interface: the device answers E_ACCESS_DENIED."""
         self._out: list[bytes] = []
         self._out_size = 0
         self.dropped = 0
@@ -75,19 +76,16 @@ class TcpConnection(asyncio.Protocol):
         srv.connections.add(self)
         tune_socket(transport.get_extra_info("socket"), srv.limits)
         transport.set_write_buffer_limits(high=srv.limits.high_water)
-        if srv.controller is None:
-            srv.controller = self
-            self.session = srv.gripper.open_session("tcp", peer=self.peer, deliver=self.deliver)
-            log.info("tcp %s: connected (controls the gripper)", self.peer)
+        self.session = srv.gripper.open_session("tcp", peer=self.peer, deliver=self.deliver)
+        self.refused = bool(getattr(self.session, "denied", False))
+        if self.refused:
+            log.info("tcp %s: connected while another client holds control: E_ACCESS_DENIED", self.peer)
         else:
-            self.refused = FrameParser(True, request_max_payload)
-            log.info("tcp %s: connected while %s holds control: E_ACCESS_DENIED", self.peer, srv.controller.peer)
+            srv.controller = self
+            log.info("tcp %s: connected (controls the gripper)", self.peer)
 
     def data_received(self, data: bytes) -> None:
         self.last_rx = time.monotonic()
-        if self.refused is not None:
-            self._refuse(data)
-            return
         replies = self.server.gripper.feed(self.session, data)
         if replies:
             if log.isEnabledFor(logging.INFO):
@@ -100,9 +98,9 @@ class TcpConnection(asyncio.Protocol):
         self._out.clear()
         if srv.controller is self:
             srv.controller = None
-            session, self.session = self.session, None
-            if session is not None:
-                srv.gripper.close_session(session)
+        session, self.session = self.session, None
+        if session is not None:
+            srv.gripper.close_session(session)  # the device decides on FAST STOP
             log.info("tcp %s: disconnected%s", self.peer, f" ({exc})" if exc else "")
         self.transport = None
 
@@ -168,18 +166,6 @@ class TcpConnection(asyncio.Protocol):
             log.warning("tcp %s: %d bytes unread, connection closed", self.peer, t.get_write_buffer_size())
             t.abort()
 
-    def _refuse(self, data: bytes) -> None:
-        assert self.refused is not None
-        out = []
-        for ev in self.refused.feed(data):
-            cid = getattr(ev, "command_id", None)
-            if cid is not None:
-                out.append(Frame.reply(cid, Status.E_ACCESS_DENIED))
-                if log.isEnabledFor(logging.INFO):
-                    log.info("tcp %s: %s refused (not the controlling client)", self.peer, command_name(cid))
-        if out:
-            self._write_now(out)
-
 
 class TcpServer:
     """Serves ``gripper`` on ``host:port`` (port 0: any free port; read :attr:`port`)."""
@@ -223,7 +209,7 @@ class TcpServer:
             await asyncio.sleep(period)
             cutoff = time.monotonic() - self.limits.denied_idle
             for conn in list(self.connections):
-                if conn.refused is not None and conn.last_rx < cutoff and conn.transport is not None:
+                if conn.refused and conn.last_rx < cutoff and conn.transport is not None:
                     conn.transport.close()
 
     @property
