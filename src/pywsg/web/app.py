@@ -149,13 +149,18 @@ class CommandBridge:
         spec = CATALOG[command]
         frame = Frame(int(command), spec.encode_request(values))
         replies = self.gripper.handle_frame(self.session, frame)
+        answer: tuple[Status | int, dict[str, Any]] | None = None
         for reply in replies:
-            if reply.command_id == int(command):
+            if reply.command_id == int(command) and answer is None:
                 status, decoded = spec.decode_reply(reply.payload)
                 if record:
                     self._record(int(command), status, status != Status.E_CMD_PENDING)
-                return status, dict(decoded)
-        raise RuntimeError(f"no reply to {spec.label}")
+                answer = status, dict(decoded)
+            else:  # e.g. Stop: the aborted motion's final frame comes with 22h's own reply
+                self._deliver(reply)
+        if answer is None:
+            raise RuntimeError(f"no reply to {spec.label}")
+        return answer
 
     def limits(self) -> dict[str, float]:
         """53h Get System Limits: stroke mm, speeds mm/s, accelerations mm/s², forces N."""
@@ -177,9 +182,10 @@ class CommandBridge:
 class LogFeed:
     """The device's system log, numbered for incremental reads (``after=seq``)."""
 
-    def __init__(self, system_log: Any, size: int = 2000) -> None:
+    def __init__(self, system_log: Any, clock: Callable[[], float] | None = None, size: int = 2000) -> None:
         self.entries: deque[dict[str, Any]] = deque(maxlen=size)
         self.seq = 0
+        self.clock = clock
         if system_log is None:
             return
         for entry in _existing_entries(system_log):
@@ -197,6 +203,13 @@ class LogFeed:
         if not data.get("message"):
             data["message"] = str(entry)
         data["seq"] = self.seq
+        # entry times are device-clock seconds; the page shows wall-clock time
+        t = data.get("time")
+        wall = time.time()
+        if isinstance(t, int | float) and self.clock is not None:
+            with contextlib.suppress(Exception):
+                wall -= max(0.0, float(self.clock()) - t)
+        data["wall_time"] = wall
         self.entries.append(data)
 
     def after(self, seq: int, limit: int = 500) -> list[dict[str, Any]]:
@@ -311,8 +324,8 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
         settings_path = getattr(gripper, "settings_path", None)
     ctx = WebContext(
         gripper=gripper, auth=Auth(loopback=loopback, password=password), bridge=CommandBridge(gripper),
-        log_feed=LogFeed(getattr(gripper, "log", None)), fieldbus=fieldbus, sim_info=sim_info,
-        settings_path=Path(settings_path) if settings_path else None,
+        log_feed=LogFeed(getattr(gripper, "log", None), getattr(gripper, "clock", None)), fieldbus=fieldbus,
+        sim_info=sim_info, settings_path=Path(settings_path) if settings_path else None,
     )
     # no Swagger/ReDoc pages: they load scripts from a CDN
     app = FastAPI(title="pywsg web interface", version=__version__, docs_url=None, redoc_url=None,
@@ -342,11 +355,9 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
         response = await _check(request, s, call_next)
         current: WebSession = request.state.websession
         if fresh or current is not s:
-            host = request.url.hostname or ""
-            response.set_cookie(
-                COOKIE_NAME, current.id, httponly=True, samesite="strict", path="/",
-                secure=request.url.scheme == "https" or is_loopback_host(host),
-            )
+            # Secure under TLS; on plain http a Secure cookie would never come back from another host
+            response.set_cookie(COOKIE_NAME, current.id, httponly=True, samesite="strict", path="/",
+                                secure=request.url.scheme == "https")
         response.headers.setdefault("X-Frame-Options", "DENY")
         response.headers.setdefault("X-Content-Type-Options", "nosniff")
         response.headers.setdefault(
@@ -672,6 +683,13 @@ def _add_api(app: FastAPI, ctx: WebContext) -> None:
             raise InputError({"_": "this gripper has no fault injection (not a virtual gripper)"})
         return f
 
+    def inject(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+        try:
+            fn(*args, **kwargs)
+        except ValueError as exc:  # the device names the field: "width: must be ..."
+            field, reason = field_of_error(str(exc), ["width", "stiffness", "delta_c", "finger"])
+            raise InputError({field: reason}) from None
+
     def done(action: str) -> dict[str, Any]:
         log.info("web: simulation: %s", action)
         return {"ok": True, "action": action, "state": ctx.state()}
@@ -680,9 +698,9 @@ def _add_api(app: FastAPI, ctx: WebContext) -> None:
     async def place_part(body: PartBody) -> dict[str, Any]:
         motion_limits(body.width, None)
         if body.stiffness is None:
-            faults().place_part(body.width)
+            inject(faults().place_part, body.width)
         else:
-            faults().place_part(body.width, stiffness=body.stiffness)
+            inject(faults().place_part, body.width, stiffness=body.stiffness)
         return done(f"part of {body.width:g} mm placed")
 
     @app.delete("/api/sim/part")
@@ -693,7 +711,7 @@ def _add_api(app: FastAPI, ctx: WebContext) -> None:
     @app.post("/api/sim/block")
     async def block(body: BlockBody) -> dict[str, Any]:
         motion_limits(body.width, None)
-        faults().block_at(body.width)
+        inject(faults().block_at, body.width)
         return done(f"fingers blocked at {body.width:g} mm")
 
     @app.delete("/api/sim/block")
@@ -703,18 +721,18 @@ def _add_api(app: FastAPI, ctx: WebContext) -> None:
 
     @app.post("/api/sim/heat")
     async def heat(body: HeatBody) -> dict[str, Any]:
-        faults().heat(body.delta_c)
+        inject(faults().heat, body.delta_c)
         return done(f"temperature changed by {body.delta_c:+g} °C")
 
     @app.post("/api/sim/fault")
     async def fault(body: FaultBody) -> dict[str, Any]:
         f = faults()
         if body.kind == "power":
-            f.power_fault(body.on)
+            inject(f.power_fault, body.on)
         elif body.kind == "current":
-            f.current_fault(body.on)
+            inject(f.current_fault, body.on)
         else:
-            f.finger_fault(body.finger, body.on)
+            inject(f.finger_fault, body.finger - 1, body.on)  # the device counts fingers from 0
         which = f"finger {body.finger} " if body.kind == "finger" else ""
         return done(f"{which}{body.kind} fault {'on' if body.on else 'off'}")
 

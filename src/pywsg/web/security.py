@@ -9,8 +9,8 @@ Rules (issue 6, docs/web.md):
 - Every state-changing request carries the session's CSRF token (header ``X-CSRF-Token``, or the
   form field ``csrf_token`` on the login form), also on loopback: a page on another site must not be
   able to move the fingers through a browser that happens to run on the gripper's PC.
-- Sessions are random server-side ids in an HttpOnly, SameSite=Strict cookie, Secure whenever the
-  browser treats the origin as secure (HTTPS, or http on a loopback host).
+- Sessions are random server-side ids (256 bits) in an HttpOnly, SameSite=Strict cookie, replaced
+  on login; the cookie is Secure when served over HTTPS (``serve_web(ssl_certfile=...)``).
 """
 
 from __future__ import annotations

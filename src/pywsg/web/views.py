@@ -44,7 +44,7 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, enum.IntFlag):
         return int(value)
     if isinstance(value, enum.Enum):
-        return value.name
+        return value.value if isinstance(value, str) else value.name
     if isinstance(value, bool | int | str) or value is None:
         return value
     if isinstance(value, float):

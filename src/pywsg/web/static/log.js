@@ -15,7 +15,7 @@
       last = e.seq;
       const tr = document.createElement("tr");
       tr.className = "lvl-" + String(e.level).toLowerCase();
-      for (const v of [e.seq, timeText(e.time), e.level, e.message]) {
+      for (const v of [e.seq, timeText(e.wall_time !== undefined ? e.wall_time : e.time), e.level, e.message]) {
         const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
       }
       tbody.appendChild(tr);

@@ -1,0 +1,169 @@
+"""Web interface test harness: a real virtual gripper on real sockets, a real browser.
+
+``LiveSim`` runs the gripper, its runner, the TCP command interface, the Modbus/TCP fieldbus server
+and the web interface on an asyncio loop in a background thread, the way ``wsg sim`` runs them;
+tests talk to it over 127.0.0.1 like a user would (httpx, raw TCP, pymodbus, Chromium). Device
+calls from a test go through ``sim.call`` so that the gripper is only touched by its own loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import threading
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Any, TypeVar
+
+import httpx
+import pytest
+
+from pywsg.device import Settings, VirtualGripper
+from pywsg.fieldbus.modbus import serve_modbus
+from pywsg.server import DeviceRunner, TcpServer
+from pywsg.web.app import WebHandle, serve_web
+
+ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"
+DOC_IMAGES = Path(__file__).resolve().parents[2] / "docs" / "img"
+CHROMIUM = os.environ.get("PYWSG_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
+]
+T = TypeVar("T")
+
+
+class LiveSim:
+    """One virtual gripper served on TCP, Modbus/TCP and the web interface, in a loop thread."""
+
+    def __init__(self, tmp: Path, host: str = "127.0.0.1", **web_kwargs: Any) -> None:
+        self.settings_path = tmp / "settings.json"
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, name="live-sim", daemon=True)
+        self.thread.start()
+        self.web_kwargs = web_kwargs
+        self.host = host
+        self.run(self._start())
+
+    async def _start(self) -> None:
+        self.gripper = VirtualGripper("wsg50", settings=Settings())
+        self.runner = DeviceRunner(self.gripper)
+        self.runner.start()
+        self.tcp = await TcpServer(self.gripper, self.runner, "127.0.0.1", 0).start()
+        self.modbus = await serve_modbus(self.gripper, "127.0.0.1", 0)
+        sim_info = {"TCP": f"tcp://127.0.0.1:{self.tcp.port}", "Modbus/TCP": f"127.0.0.1:{self.modbus.port}"}
+        kwargs: dict[str, Any] = {"fieldbus": self.modbus.controller, "sim_info": sim_info,
+                                  "settings_path": self.settings_path}
+        kwargs.update(self.web_kwargs)
+        self.web: WebHandle = await serve_web(self.gripper, self.host, 0, **kwargs)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.web.port}"
+
+    def run(self, coro: Any, timeout: float = 10.0) -> Any:
+        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+
+    def call(self, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """Run ``fn`` on the loop thread (the gripper is not thread-safe) and return its result."""
+        fut: Future[T] = Future()
+
+        def job() -> None:
+            try:
+                fut.set_result(fn(*args, **kwargs))
+            except BaseException as exc:
+                fut.set_exception(exc)
+
+        self.loop.call_soon_threadsafe(job)
+        return fut.result(5.0)
+
+    def snapshot(self) -> Any:
+        return self.call(self.gripper.snapshot)
+
+    def close(self) -> None:
+        async def stop() -> None:
+            await self.web.close()
+            await self.modbus.close()
+            await self.tcp.close()
+            self.runner.stop()
+
+        try:
+            self.run(stop())
+        finally:
+            self.loop.call_soon_threadsafe(self.loop.stop)
+            self.thread.join(5)
+            self.loop.close()
+
+
+def client_for(sim: LiveSim) -> httpx.Client:
+    """An HTTP client with a session cookie and its CSRF token in the default headers."""
+    c = httpx.Client(base_url=sim.url, timeout=5.0)
+    token = c.get("/api/csrf").json()["token"]
+    c.headers["X-CSRF-Token"] = token
+    return c
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    s = LiveSim(tmp_path_factory.mktemp("websim"))
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+@pytest.fixture
+def api(sim: LiveSim) -> Iterator[httpx.Client]:
+    c = client_for(sim)
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    """One headless Chromium per test module (Debian's chromium, driven by Playwright)."""
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} missing: scripts/test.sh installs Debian's chromium package")
+    from playwright.sync_api import sync_playwright
+
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
+def page(browser: Any) -> Iterator[Any]:
+    """A fresh browser context (no cookies) and page; JavaScript errors fail the test."""
+    context = browser.new_context(viewport={"width": 1400, "height": 950})
+    pg = context.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda exc: errors.append(str(exc)))
+    pg.set_default_timeout(5000)
+    yield pg
+    context.close()
+    assert not errors, f"JavaScript errors: {errors}"
+
+
+def home(sim: LiveSim, api: httpx.Client) -> None:
+    """Reference the gripper (homing) and wait until it is done."""
+    r = api.post("/api/home", json={})
+    assert r.status_code == 202, r.text
+    wait_for(lambda: sim.snapshot().referenced and not sim.snapshot().moving, 10.0)
+
+
+def wait_for(cond: Callable[[], bool], timeout: float = 5.0, step: float = 0.02) -> None:
+    import time
+
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return
+        time.sleep(step)
+    raise AssertionError("condition not met in time")
