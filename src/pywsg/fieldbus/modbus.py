@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import struct
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,6 +46,18 @@ _COIL_FCS = {_FC_READ_COILS, _FC_WRITE_COIL, _FC_WRITE_COILS}
 _HR_FCS = {_FC_READ_HR, _FC_WRITE_REG, _FC_WRITE_REGS, _FC_MASK_WRITE, _FC_READ_WRITE}
 
 
+_QUANTITY_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
+
+
+def _bad_quantity(pdu: bytes) -> bool:
+    """True if a read/write-multiple request's quantity is outside the Modbus limits."""
+    limit = _QUANTITY_LIMITS.get(pdu[0]) if pdu else None
+    if limit is None or len(pdu) < 5:
+        return False
+    count = pdu[3] << 8 | pdu[4]
+    return not 1 <= count <= limit
+
+
 def _words(bits: list[bool]) -> list[int]:
     """Bits packed 16 per register, bit 0 first (pymodbus' bit-block layout)."""
     return [int_of(bits[i:i + 16]) for i in range(0, len(bits), 16)]
@@ -56,6 +69,7 @@ class FieldbusModbusAdapter:
     def __init__(self, controller: FieldbusController) -> None:
         self.controller = controller
         self.requests = 0
+        self._last_fc: dict[int, tuple[int, bool]] = {}
 
     def device(self) -> SimDevice:
         """The pymodbus device: four separate blocks, bit-addressed coils and discrete inputs."""
@@ -88,6 +102,30 @@ class FieldbusModbusAdapter:
             return ExcCodes.DEVICE_FAILURE
         self._refresh(function_code, registers)
         return None
+
+    def trace_packet(self, sending: bool, data: bytes) -> bytes:
+        """pymodbus packet hook: make undecodable requests get the exception a PLC expects.
+
+        pymodbus 3.16 answers every request it cannot decode with function code 80h and exception
+        01: a Modbus master expects the request's function code | 80h, and exception 03 (ILLEGAL
+        DATA VALUE) when only the quantity is out of range (e.g. reading 0 registers).
+        """
+        if not sending:
+            pos = 0
+            while pos + 8 <= len(data):   # MBAP: tid, protocol, length (unit id + PDU), unit id, FC
+                tid, _, length = struct.unpack_from(">HHH", data, pos)
+                pdu = data[pos + 7:pos + 6 + max(length, 2)]
+                self._last_fc[tid] = (pdu[0], _bad_quantity(pdu))
+                for k in list(self._last_fc)[:-64]:
+                    del self._last_fc[k]
+                pos += 6 + max(length, 2)
+            return data
+        if len(data) >= 9 and data[7] & 0x80 and data[8] == ExcCodes.ILLEGAL_FUNCTION:
+            tid = struct.unpack_from(">H", data)[0]
+            fc, bad_quantity = self._last_fc.pop(tid, (data[7] & 0x7F, False))
+            code = ExcCodes.ILLEGAL_VALUE if bad_quantity else ExcCodes.ILLEGAL_FUNCTION
+            return data[:7] + bytes([(fc & 0x7F) | 0x80, code]) + data[9:]
+        return data
 
     def _refresh(self, function_code: int, registers: list[int]) -> None:
         """Fill the accessed block from the controller (reads see fresh values)."""
@@ -140,7 +178,7 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
     """
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
-    server = ModbusTcpServer(adapter.device(), address=(host, port))
+    server = ModbusTcpServer(adapter.device(), address=(host, port), trace_packet=adapter.trace_packet)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
         ctl.close()
