@@ -25,11 +25,11 @@ class Rig:
         return self.g.handle_frame(session or self.s, Frame(cid, payload))
 
     def call(self, cid: int, payload: bytes | None = None, **values: Value) -> Frame:
-        """Send and expect exactly one immediate reply."""
+        """Send and return the command's immediate reply (earlier due frames go to ``deferred``)."""
         replies = self.send(cid, payload, **values)
-        assert len(replies) == 1, replies
-        assert replies[0].command_id == cid
-        return replies[0]
+        assert replies and replies[-1].command_id == cid, replies
+        self.deferred.extend(replies[:-1])
+        return replies[-1]
 
     def status(self, cid: int, payload: bytes | None = None, **values: Value) -> Status | int:
         return self.call(cid, payload, **values).status
