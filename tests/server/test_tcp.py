@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import socket
 import struct
 import time
@@ -123,7 +124,7 @@ def test_auto_update_every_10ms_and_unsubscribe(sim: SimThread) -> None:
         f = c.receive()
         assert f.command_id == 0x43 and f.status == Status.E_SUCCESS
         times.append(time.monotonic())
-    gaps = sorted(b - a for a, b in zip(times, times[1:], strict=False))
+    gaps = sorted(b - a for a, b in itertools.pairwise(times))
     assert 0.007 < gaps[len(gaps) // 2] < 0.013  # median period ~10 ms
     c.send(Frame(0x43, spec.encode_request(flags=0, period_ms=10)).encode())
     time.sleep(0.05)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import importlib
+import inspect
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -93,12 +94,19 @@ def _nth(port: int | None, i: int) -> int | None:
 
 
 async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwargs: Any) -> Any:
+    """Import ``module.func`` only now (optional extras) and await it with the keywords it takes."""
     try:
         mod = importlib.import_module(module)
         serve = getattr(mod, func)
     except (ImportError, AttributeError) as exc:
         raise SimError(f"{what} is not available ({module}.{func}: {exc}); leave its port off") from exc
-    return await serve(*args, **kwargs)
+    params = inspect.signature(serve).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        kwargs = {k: v for k, v in kwargs.items() if k in params}
+    try:
+        return await serve(*args, **kwargs)
+    except OSError as exc:
+        raise SimError(f"{what}: {exc.strerror or exc}") from exc
 
 
 def _bound_port(obj: Any) -> int | None:
@@ -150,6 +158,21 @@ class SimGripper:
     @property
     def serial_url(self) -> str | None:
         return self.serial.address if self.serial else None
+
+    def info(self) -> dict[str, str]:
+        """Interface -> address of what this gripper serves (for the web interface)."""
+        out: dict[str, str] = {}
+        if self.tcp:
+            out["tcp"] = self.tcp.address
+        if self.udp:
+            out["udp"] = self.udp.address
+        if self.serial:
+            out["serial"] = self.serial.address
+        if self.can:
+            out["can"] = self.can.address
+        if self.modbus is not None:
+            out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
+        return out
 
     def lines(self) -> list[str]:
         """One line per interface, as ``wsg sim`` prints them."""
@@ -278,8 +301,14 @@ class SimServer:
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
+            extra: dict[str, Any] = {
+                "sim_info": sg.info(),
+                "fieldbus": getattr(sg.modbus, "controller", None),
+                "settings_path": str(opts.settings) if opts.settings else None,
+            }
+            extra.update(opts.web_options)
             sg.web = await _serve_optional(
-                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **opts.web_options
+                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
 
