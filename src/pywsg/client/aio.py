@@ -36,7 +36,6 @@ from .core import (
     DEFAULT_TIMEOUT,
     bad_checksum,
     decode_success,
-    lost,
     needs_flags,
     raise_for,
     sample_of,
@@ -150,6 +149,7 @@ class AsyncStream(Sink):
         self._waiter: asyncio.Future[None] | None = None
         self._end: BaseException | None = None
         self._ended = False
+        self._closed = False
         self.received = 0
         self.dropped = 0
         self.callbacks: list[Callable[[Sample], None]] = []
@@ -168,6 +168,11 @@ class AsyncStream(Sink):
         w = self._waiter
         if w is not None and not w.done():
             w.set_result(None)
+
+    def revive(self) -> None:
+        if not self._closed:
+            self._ended = False
+            self._end = None
 
     def end(self, exc: BaseException | None) -> None:
         self._ended = True
@@ -207,7 +212,8 @@ class AsyncStream(Sink):
         return out
 
     async def close(self) -> None:
-        if not self._ended:
+        if not self._closed:
+            self._closed = True
             self.end(None)
             await self._gripper._unsubscribe(self)
 
@@ -337,14 +343,23 @@ class AsyncGripper:
                 await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
             except WsgError as exc:
                 log.debug("disconnect announcement: %s", exc)
-        self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True)
+        self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
 
-    def _drop_transport(self, exc: ConnectionLostError, end_streams: bool) -> None:
+    def _drop_transport(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
+        """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
+        ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
         t, self._transport = self._transport, None
         if t is not None:
             t.close()
-        self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid), end_streams=end_streams)
+        self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
         if end_streams:
+            for cmd, streams in list(self._streams.items()):
+                for st in streams:
+                    st.end(None if forget else ConnectionLostError(exc.detail, int(cmd)))
+        if forget:
+            for cmd, streams in list(self._streams.items()):
+                for st in streams:
+                    self._demux.remove_stream(cmd, st)
             self._streams.clear()
             self._subs.clear()
 
@@ -360,6 +375,9 @@ class AsyncGripper:
                     pass
             self._drop_transport(ConnectionLostError("reconnecting"), end_streams=False)
         await self.connect()
+        for streams in self._streams.values():
+            for st in streams:
+                st.revive()
         for cmd, (period, change_only) in list(self._subs.items()):
             await self._run(calls.subscribe(cmd, period, change_only))
         flags = await self.system_state()
@@ -385,9 +403,8 @@ class AsyncGripper:
                 self._drop_transport(ConnectionLostError(str(exc)), end_streams=False)
                 delay = min(delay * 2, policy.max_delay)
         log.error("giving up reconnecting to %s", self.endpoint)
-        self._demux.fail_all(lost("connection lost; reconnecting failed"), end_streams=True)
-        self._streams.clear()
-        self._subs.clear()
+        self._drop_transport(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True,
+                             forget=True)
 
     async def __aenter__(self) -> AsyncGripper:
         await self.connect()
@@ -462,10 +479,18 @@ class AsyncGripper:
         final = _AWaiter(call.command_id, loop) if call.pending else None
         w = _AWaiter(call.command_id, loop, final)
         self._demux.expect(w)
+        wire = call.wire
+        if call.auto_read and self._subs:
+            wire = self._read_wire(call)
         if self._comm.active:
-            self._comm.frame(TX, Frame(call.command_id, call.wire[6:-2]))
-        t.write(call.wire)
+            self._comm.frame(TX, Frame(call.command_id, wire[6:-2]))
+        t.write(wire)
         return await self._wait(w, self.timeout if timeout is None else timeout), final
+
+    def _read_wire(self, call: Call[Any]) -> bytes:
+        """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
+        sub = self._subs.get(Command(call.command_id))
+        return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     async def _wait(self, w: _AWaiter, timeout: float) -> Frame:
         loop = self._loop

@@ -53,6 +53,7 @@ class Call(Generic[T]):
     motion: bool = False  # read the system flags when it fails (FAST STOP? blocked?)
     none_on: frozenset[int] = field(default_factory=frozenset)  # statuses that mean "no value": result None
     raw: bool = False  # custom request: the result is a Reply, errors are the caller's choice
+    auto_read: bool = False  # a one-off read of an auto-update value (flags 0: it would end a subscription)
 
 
 def _none(_v: Values) -> None:
@@ -60,11 +61,11 @@ def _none(_v: Values) -> None:
 
 
 def _make(cmd: Command, decode: Callable[[Values], T], none_on: frozenset[int] = frozenset(),
-          **values: Any) -> Call[T]:
+          auto_read: bool = False, **values: Any) -> Call[T]:
     spec = CATALOG[cmd]
     payload = spec.encode_request(values) if spec.request else b""
     return Call(int(cmd), encode_frame(int(cmd), payload), decode, pending=spec.kind is not Kind.IMMEDIATE,
-                motion=spec.motion, none_on=none_on)
+                motion=spec.motion, none_on=none_on, auto_read=auto_read)
 
 
 def _float(name: str) -> Callable[[Values], float]:
@@ -188,30 +189,32 @@ def decode_sample(cmd: int, v: Values) -> SystemFlag | GripperState | float | in
 
 @cache
 def system_state() -> Call[SystemFlag]:
-    return _make(Command.GET_SYSTEM_STATE, lambda v: SystemFlag(cast(int, v["state"])), flags=0, period_ms=0)
+    return _make(Command.GET_SYSTEM_STATE, lambda v: SystemFlag(cast(int, v["state"])), flags=0, period_ms=0,
+                 auto_read=True)
 
 
 @cache
 def gripper_state() -> Call[GripperState | int]:
     return _make(Command.GET_GRIPPER_STATE, lambda v: cast("GripperState | int", v["state"]),
-                 flags=0, period_ms=0)
+                 flags=0, period_ms=0, auto_read=True)
 
 
 @cache
 def width() -> Call[float]:
-    return _make(Command.GET_OPENING_WIDTH, _float("width"), flags=0, period_ms=0)
+    return _make(Command.GET_OPENING_WIDTH, _float("width"), flags=0, period_ms=0, auto_read=True)
 
 
 @cache
 def speed() -> Call[float]:
-    return _make(Command.GET_SPEED, _float("speed"), flags=0, period_ms=0)
+    return _make(Command.GET_SPEED, _float("speed"), flags=0, period_ms=0, auto_read=True)
 
 
 @cache
 def force() -> Call[float]:
-    return _make(Command.GET_FORCE, _float("force"), flags=0, period_ms=0)
+    return _make(Command.GET_FORCE, _float("force"), flags=0, period_ms=0, auto_read=True)
 
 
+@cache
 def subscribe(cmd: Command, period: float, change_only: bool) -> Call[SystemFlag | GripperState | float | int]:
     period_ms = round(period * 1000)
     if not 10 <= period_ms <= 0xFFFF:

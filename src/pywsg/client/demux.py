@@ -72,6 +72,9 @@ class Sink:
     def end(self, exc: BaseException | None) -> None:
         raise NotImplementedError
 
+    def revive(self) -> None:
+        """The connection is back (reconnect): accept samples again."""
+
 
 def _status(frame: Frame) -> int:
     p = frame.payload
@@ -190,8 +193,8 @@ class Demux:
         w.fail(exc_factory(cid))
         return True
 
-    def fail_all(self, exc_factory: Callable[[int], BaseException], end_streams: bool = True) -> None:
-        """Connection lost: fail every waiting call at once; end the streams."""
+    def fail_all(self, exc_factory: Callable[[int], BaseException]) -> None:
+        """Connection lost: fail every waiting call at once (streams are the shell's business)."""
         for queues in (self.replies, self.finals):
             for q in queues.values():
                 while q:
@@ -199,8 +202,3 @@ class Demux:
                     if not w.ghost_until:
                         w.fail(exc_factory(w.command_id))
             queues.clear()
-        if end_streams:
-            for cid, sinks in list(self.streams.items()):
-                for s in sinks:
-                    s.end(exc_factory(cid))
-            self.streams.clear()

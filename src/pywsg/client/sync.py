@@ -126,6 +126,7 @@ class Stream(Sink):
         self._cv = threading.Condition(threading.Lock())
         self._maxlen = maxlen
         self._ended = False
+        self._closed = False
         self._end: BaseException | None = None
         self.received = 0
         self.dropped = 0
@@ -144,6 +145,12 @@ class Stream(Sink):
             self._cv.notify_all()
         if self.callbacks:
             self._gripper._callback(self, s)
+
+    def revive(self) -> None:
+        with self._cv:
+            if not self._closed:
+                self._ended = False
+                self._end = None
 
     def end(self, exc: BaseException | None) -> None:
         with self._cv:
@@ -180,7 +187,8 @@ class Stream(Sink):
         return out
 
     def close(self) -> None:
-        if not self._ended:
+        if not self._closed:
+            self._closed = True
             self.end(None)
             self._gripper._unsubscribe(self)
 
@@ -297,21 +305,29 @@ class Gripper:
             except WsgError as exc:
                 log.debug("disconnect announcement: %s", exc)
         self._stop_pump()
-        self._drop(ConnectionLostError("connection closed by the client"), end_streams=True)
+        self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
         if self._cb_thread is not None:
             self._cbq.put(None)
             if self._cb_thread is not threading.current_thread():
                 self._cb_thread.join(2.0)
             self._cb_thread = None
 
-    def _drop(self, exc: ConnectionLostError, end_streams: bool) -> None:
+    def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
+        """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
+        ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
         with self._cv:
             t, self._transport = self._transport, None
-            self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid), end_streams=end_streams)
-            if end_streams:
+            self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
+            streams = [(cmd, st) for cmd, lst in self._streams.items() for st in lst]
+            if forget:
+                for cmd, st in streams:
+                    self._demux.remove_stream(cmd, st)
                 self._streams.clear()
                 self._subs.clear()
             self._cv.notify_all()
+        if end_streams:
+            for cmd, st in streams:
+                st.end(None if forget else ConnectionLostError(exc.detail, int(cmd)))
         if t is not None:
             t.close()
 
@@ -326,8 +342,13 @@ class Gripper:
                     pass
             self._drop(ConnectionLostError("reconnecting"), end_streams=False)
         self.connect()
+        for lst in list(self._streams.values()):
+            for st in lst:
+                st.revive()
         for cmd, (period, change_only) in list(self._subs.items()):
             self._run(calls.subscribe(cmd, period, change_only))
+        if self._streams and threading.current_thread() is not self._pump:
+            self._start_pump()
         flags = self.system_state()
         if flags & SystemFlag.SF_FAST_STOP:
             log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
@@ -354,7 +375,7 @@ class Gripper:
                 self._drop(ConnectionLostError(str(exc)), end_streams=False)
                 delay = min(delay * 2, policy.max_delay)
         log.error("giving up reconnecting to %s", self.endpoint)
-        self._drop(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True)
+        self._drop(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True, forget=True)
         return False
 
     def __enter__(self) -> Gripper:
@@ -481,12 +502,17 @@ class Gripper:
         t = self._transport_or_raise(call.command_id)
         final = Waiter(call.command_id) if call.pending else None
         w = Waiter(call.command_id, final)
-        self._send(t, [w], [call.wire])
+        self._send(t, [w], [self._read_wire(call) if call.auto_read and self._subs else call.wire])
         self._wait_for(w, self.timeout if timeout is None else timeout)
         if w.error is not None:
             raise w.error
         assert w.frame is not None
         return w.frame, final
+
+    def _read_wire(self, call: Call[Any]) -> bytes:
+        """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
+        sub = self._subs.get(Command(call.command_id)) if call.auto_read else None
+        return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     def _run(self, call: Call[T], timeout: float | None = None) -> T:
         frame, _ = self._exchange(call, timeout)
@@ -657,7 +683,7 @@ class Gripper:
                                calls.system_state(), calls.temperature()]
         t = self._transport_or_raise(cs[0].command_id)
         ws = [Waiter(c.command_id) for c in cs]
-        self._send(t, ws, [c.wire for c in cs])
+        self._send(t, ws, [self._read_wire(c) if self._subs else c.wire for c in cs])
         out: list[Any] = []
         for c, w in zip(cs, ws, strict=True):
             self._wait_for(w, self.timeout)
@@ -764,12 +790,16 @@ class Gripper:
 
     def _run_pump(self) -> None:
         never = Waiter(-1)
-        while not self._pump_stop.is_set():
-            if self._transport is None:
-                if not self._auto_reconnect():
-                    return
-                continue
-            self._wait_for(never, _PUMP_SLICE, abandon=False)
+        try:
+            while not self._pump_stop.is_set():
+                if self._transport is None:
+                    if not self._auto_reconnect():
+                        return
+                    continue
+                self._wait_for(never, _PUMP_SLICE, abandon=False)
+        finally:
+            if self._pump is threading.current_thread():
+                self._pump = None
 
     def __repr__(self) -> str:
         return f"<Gripper {self.endpoint} {'connected' if self.connected else 'closed'}>"
