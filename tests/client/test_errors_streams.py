@@ -190,7 +190,7 @@ async def test_async_iterator_stream_change_only(sim: SimThread) -> None:
             await g.grip(30, FAST)
         await asyncio.wait_for(task, 2)
         assert seen[0] == GripperState.IDLE and seen[-1] == GripperState.NO_PART
-        assert len(seen) == len([a for a, b in zip(seen, [None, *seen]) if a != b])  # change only
+        assert len(seen) == len([a for a, b in zip(seen, [None, *seen[:-1]], strict=True) if a != b])  # change only
 
 
 @pytest.mark.realtime
