@@ -460,8 +460,15 @@ class GrippingCycle:
             self.state += 1
         if self.state != state:
             self._say(f"step {state:>2} -> {self.state:>2}: {STEP_TEXT.get(self.state, 'default branch')}"
-                      f"  [{_gstate_name(gs)}, {Status.describe(receive.status)}]")
+                      f"  [{_gstate_name(gs)}, {_status_name(receive.status)}]")
         return self.send
+
+
+def _status_name(code: int) -> str:
+    try:
+        return Status(code).name
+    except ValueError:
+        return str(code)
 
 
 def _gstate_name(gs: GState) -> str:

@@ -1,0 +1,121 @@
+"""PLC side over real Modbus/TCP: FieldbusGripper, and `wsg plc-demo` against wsg sim (real process)."""
+
+from __future__ import annotations
+
+import asyncio
+import sys
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import pytest
+
+from pywsg.cli.plc import run_demo
+from pywsg.fieldbus.plc import AsyncFieldbusGripper, FieldbusError, FieldbusGripper
+from pywsg.protocol import GripperState, Status, SystemFlag
+from pywsg.server import SimServer
+
+pytestmark = pytest.mark.realtime
+
+WSG = str(Path(sys.executable).parent / "wsg")
+
+
+@pytest.fixture
+async def sim() -> AsyncIterator[SimServer]:
+    async with SimServer(tcp_port=None, udp_port=None, modbus_port=0) as s:
+        yield s
+
+
+async def _plc_demo(port: int, *args: str) -> tuple[int, str]:
+    proc = await asyncio.create_subprocess_exec(
+        WSG, "plc-demo", "--port", str(port), "--timeout", "25", *args,
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
+    out, _ = await asyncio.wait_for(proc.communicate(), 40)
+    return proc.returncode or 0, out.decode()
+
+
+async def test_plc_demo_three_cycles_with_a_part(sim: SimServer) -> None:
+    sim.grippers[0].gripper.faults.place_part(22.0)
+    rc, out = await _plc_demo(sim.modbus_port or 0, "--cycles", "3")
+    assert rc == 0, out
+    assert "done: 3 cycle(s), 3 part(s) held, 0 without part, 0 error recovery(ies)" in out
+    for step in ("step  0 ->  1", "step  6 ->  7", "step  7 ->  8", "step 10 -> 11"):
+        assert step in out
+    snap = sim.grippers[0].gripper.snapshot()
+    assert snap.statistics[0] == 3            # three grips counted by the gripper itself
+    assert sim.grippers[0].modbus.controller.output_image.cmdflags == 0   # no flag left raised
+
+
+async def test_plc_demo_recovers_from_an_injected_fast_stop(sim: SimServer) -> None:
+    sim.grippers[0].gripper.faults.place_part(22.0)
+    rc, out = await _plc_demo(sim.modbus_port or 0, "--cycles", "3", "--fast-stop-cycle", "2")
+    assert rc == 0, out
+    assert "injected fault: FASTSTOP" in out
+    assert "-> -1" in out and "step -1 ->  0" in out          # error state, STOP/ACK, re-homing
+    assert "done: 3 cycle(s)" in out and "1 error recovery(ies)" in out
+    snap = sim.grippers[0].gripper.snapshot()
+    assert not snap.fast_stop and snap.referenced
+
+
+async def test_demo_without_part_releases_at_once(sim: SimServer) -> None:
+    lines: list[str] = []
+    result = await run_demo("127.0.0.1", sim.modbus_port or 0, 1, echo=lines.append, timeout=20)
+    assert result.completed and result.no_part == 1 and result.holds == 0
+    assert any("[NO_PART, E_CMD_FAILED]" in line for line in lines)
+
+
+def test_plc_demo_without_a_gripper_says_so() -> None:
+    import subprocess
+
+    out = subprocess.run([WSG, "plc-demo", "--port", "1", "--timeout", "2"], capture_output=True, text=True,
+                         timeout=30)
+    assert out.returncode != 0 and "cannot connect" in out.stderr
+
+
+async def test_async_fieldbus_gripper(sim: SimServer) -> None:
+    g = await AsyncFieldbusGripper.open("127.0.0.1", sim.modbus_port or 0)
+    async with g:
+        img = await g.homing()
+        assert img.status == Status.E_SUCCESS and img.sysstate & SystemFlag.SF_REFERENCED
+        img = await g.move(30.0, 400.0)
+        assert img.width_mm == pytest.approx(30.0) and img.state == GripperState.IDLE
+        await g.set_user_flags(0x81)
+        assert sim.grippers[0].gripper.script_if == 0x81
+        img = await g.jog(+1, speed=50.0, force=0)
+        await asyncio.sleep(0.2)
+        img = await g.read()
+        assert img.state == GripperState.RELEASING and img.width_mm > 31.0
+        img = await g.jog(0)
+        await asyncio.sleep(0.1)
+        assert not (await g.read()).sysstate & SystemFlag.SF_MOVING
+
+
+async def test_grip_without_part_raises_with_the_image(sim: SimServer) -> None:
+    async with await AsyncFieldbusGripper.open("127.0.0.1", sim.modbus_port or 0) as g:
+        await g.homing()
+        await g.move(30.0, 400.0)
+        with pytest.raises(FieldbusError) as exc:
+            await g.grip(22.0, 400.0, 50.0)
+        assert exc.value.status == Status.E_CMD_FAILED
+        assert exc.value.image is not None and exc.value.image.state == GripperState.NO_PART
+        assert g.outputs.cmdflags == 0            # the GRIP flag was dropped again
+
+
+async def test_blocking_fieldbus_gripper(sim: SimServer) -> None:
+    sim.grippers[0].gripper.faults.place_part(22.0)
+    port = sim.modbus_port or 0
+
+    def plc() -> tuple[float, GripperState, Status | int | None]:
+        with FieldbusGripper("127.0.0.1", port) as g:
+            g.homing()
+            g.move(30.0, 400.0)
+            held = g.grip(22.0, 400.0, 50.0)
+            g.release(30.0, 400.0)
+            with pytest.raises(FieldbusError) as exc:
+                g.move(200.0, 400.0)              # beyond the stroke: FAST STOP
+            g.acknowledge()
+            return held.force_n(), held.state or GripperState.ERROR, exc.value.status
+
+    force, state, status = await asyncio.to_thread(plc)
+    assert state == GripperState.HOLDING and force == pytest.approx(50.0, abs=1.0)
+    assert status == Status.E_RANGE_ERROR
+    assert not sim.grippers[0].gripper.snapshot().fast_stop
