@@ -141,7 +141,8 @@ def browser() -> Iterator[Any]:
 @pytest.fixture
 def page(browser: Any) -> Iterator[Any]:
     """A fresh browser context (no cookies) and page; JavaScript errors fail the test."""
-    context = browser.new_context(viewport={"width": 1400, "height": 950})
+    # bypass_csp: Playwright evaluates wait_for_function strings with eval, which our CSP forbids
+    context = browser.new_context(viewport={"width": 1400, "height": 950}, bypass_csp=True)
     pg = context.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda exc: errors.append(str(exc)))

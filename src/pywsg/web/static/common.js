@@ -63,7 +63,8 @@
   function updateBox(s) {
     document.getElementById("g-state").textContent = s.state;
     document.getElementById("g-state").className = "state-" + s.state;
-    document.getElementById("g-width").textContent = WSG.fmt(s.width, 2, "mm");
+    // like the real panel: no position until the fingers are referenced (homing)
+    document.getElementById("g-width").textContent = s.referenced === false ? "[n/a]" : WSG.fmt(s.width, 2, "mm");
     document.getElementById("g-speed").textContent = WSG.fmt(s.speed, 1, "mm/s");
     document.getElementById("g-force").textContent = WSG.fmt(s.force, 1, "N");
     document.getElementById("g-temp").textContent = WSG.fmt(s.temperature, 1, "°C");
