@@ -1,0 +1,142 @@
+"""``wsg sim`` as a user runs it: a real process, real ports, SIGTERM."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from pywsg.protocol import Status
+
+from .conftest import TcpClient, UdpClient
+
+
+def free_base(n: int) -> int:
+    """A port p such that p..p+n-1 are free for TCP and UDP on 127.0.0.1."""
+    for _ in range(200):
+        base = random.randint(20000, 40000)
+        socks = []
+        try:
+            for i in range(n):
+                for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
+                    s = socket.socket(socket.AF_INET, kind)
+                    socks.append(s)
+                    s.bind(("127.0.0.1", base + i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no free port range")
+
+
+def start_sim(*args: str, lines: int) -> tuple[subprocess.Popen[str], list[str]]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    out: list[str] = []
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 20
+    while len(out) < lines:
+        line = proc.stdout.readline()
+        if not line:
+            err = proc.stderr.read() if proc.stderr else ""
+            raise AssertionError(f"wsg sim exited early: {out} {err}")
+        out.append(line.rstrip("\n"))
+        assert time.monotonic() < deadline
+    return proc, out
+
+
+def stop(proc: subprocess.Popen[str]) -> tuple[int, str]:
+    proc.send_signal(signal.SIGTERM)
+    try:
+        rc = proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    rest = proc.stdout.read() if proc.stdout else ""
+    return rc, rest
+
+
+def test_wsg_sim_two_grippers_tcp_udp_pty_then_sigterm(tmp_path: Path) -> None:
+    base = free_base(2)
+    settings = tmp_path / "wsg.json"
+    proc, lines = start_sim(
+        "--tcp-port", str(base), "--udp-port", str(base + 100), "--udp-reply-port", "0",
+        "--serial", "pty", "--web-port", "0", "--settings", str(settings), "--count", "2", "--no-uvloop",
+        lines=6,
+    )
+    try:
+        assert lines[0] == f"gripper 0: TCP      tcp://127.0.0.1:{base}"
+        assert lines[3] == f"gripper 1: TCP      tcp://127.0.0.1:{base + 1}"
+        assert lines[1].startswith(f"gripper 0: UDP      udp://127.0.0.1:{base + 100}")
+        assert lines[2].startswith("gripper 0: serial   serial:///dev/")
+        for i in range(2):
+            c = TcpClient(base + i)
+            assert c.request(0x06, b"fleet").params == b"fleet"
+            assert c.request(0x07).status == Status.E_SUCCESS
+            c.close()
+            u = UdpClient(base + 100 + i)
+            assert u.request(0x06, b"udp").params == b"udp"
+            u.close()
+    finally:
+        rc, rest = stop(proc)
+    assert rc == 0
+    assert "stopping" in rest
+    assert settings.exists() and json.loads(settings.read_text())  # settings saved on SIGTERM
+    with pytest.raises(OSError):  # sockets closed
+        socket.create_connection(("127.0.0.1", base), timeout=1)
+
+
+def test_wsg_sim_modbus_and_web_interfaces() -> None:
+    pytest.importorskip("pymodbus")
+    pytest.importorskip("uvicorn")
+    base = free_base(3)
+    proc, lines = start_sim(
+        "--tcp-port", str(base), "--udp-port", "0", "--serial", "off", "--modbus-port", str(base + 1),
+        "--web-port", str(base + 2), lines=3,
+    )
+    try:
+        assert lines[1] == f"gripper 0: Modbus   modbus-tcp://127.0.0.1:{base + 1}"
+        assert lines[2] == f"gripper 0: web      http://127.0.0.1:{base + 2}/"
+        from pymodbus.client import ModbusTcpClient
+
+        mb = ModbusTcpClient("127.0.0.1", port=base + 1)
+        assert mb.connect()
+        rr = mb.read_input_registers(0, count=6, device_id=1)
+        assert not rr.isError() and len(rr.registers) == 6
+        mb.close()
+        with urllib.request.urlopen(f"http://127.0.0.1:{base + 2}/", timeout=5) as resp:
+            assert resp.status == 200
+    finally:
+        rc, _ = stop(proc)
+    assert rc == 0
+
+
+def test_wsg_sim_port_in_use_is_a_clear_error() -> None:
+    blocker = socket.socket()
+    blocker.bind(("127.0.0.1", 0))
+    blocker.listen()
+    port = blocker.getsockname()[1]
+    try:
+        r = subprocess.run(
+            [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(port),
+             "--udp-port", "0", "--serial", "off", "--web-port", "0"],
+            capture_output=True, text=True, timeout=20,
+        )
+    finally:
+        blocker.close()
+    assert r.returncode != 0
+    assert "cannot bind" in r.stderr and "Traceback" not in r.stderr

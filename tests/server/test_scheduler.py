@@ -1,0 +1,107 @@
+"""Scheduling: sleep until the next due event, one timer for all grippers and streams."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import time
+from typing import Any
+
+import psutil
+import pytest
+
+from pywsg.device import ManualClock
+from pywsg.protocol import CATALOG, Frame, Status
+from pywsg.server import SimServer
+
+STREAMS = (0x40, 0x41, 0x43, 0x44)
+
+
+def subscribe(gripper: Any, period_ms: int = 10) -> list[Frame]:
+    """An internal session subscribed to four streams; returns the list its frames land in."""
+    got: list[Frame] = []
+    s = gripper.open_session("test", peer="test", deliver=got.append)
+    for cid in STREAMS:
+        r = gripper.handle_frame(s, Frame(cid, CATALOG[cid].encode_request(flags=1, period_ms=period_ms)))
+        assert r[-1].status == Status.E_SUCCESS
+    return got
+
+
+def fire_handles(loop: asyncio.AbstractEventLoop) -> int:
+    """Timer handles on the loop that belong to the scheduler."""
+    scheduled = getattr(loop, "_scheduled", [])
+    return sum(1 for h in scheduled if not h.cancelled() and "Scheduler._fire" in repr(h))
+
+
+async def test_idle_gripper_sets_no_timer_and_burns_no_cpu() -> None:
+    async with SimServer(tcp_port=0, udp_port=0) as sim:
+        await asyncio.sleep(0.05)  # power-up events, if any, are done
+        sched = sim.scheduler
+        assert sched is not None
+        rounds = sched.rounds
+        proc = psutil.Process()
+        cpu0 = sum(proc.cpu_times()[:2])
+        await asyncio.sleep(0.5)
+        cpu = sum(proc.cpu_times()[:2]) - cpu0
+        assert sched.rounds - rounds <= 1  # at most one temperature step, no tick
+        assert cpu < 0.05, f"idle sim used {cpu * 1000:.0f} ms CPU in 500 ms"
+
+
+async def test_one_timer_for_many_grippers_and_streams() -> None:
+    async with SimServer(tcp_port=None, udp_port=None, count=20) as sim:
+        inboxes = [subscribe(sg.gripper) for sg in sim.grippers]
+        for sg in sim.grippers:
+            sg.runner.wake()
+        loop = asyncio.get_running_loop()
+        for _ in range(10):
+            await asyncio.sleep(0.013)
+            assert fire_handles(loop) <= 1  # one loop timer, not one per stream or gripper
+            assert sim.scheduler is not None and sim.scheduler.pending <= 20  # one entry per gripper
+        t0 = time.monotonic()
+        counts0 = [len(i) for i in inboxes]
+        await asyncio.sleep(0.3)
+        elapsed = time.monotonic() - t0
+        for inbox, c0 in zip(inboxes, counts0, strict=True):
+            n = len(inbox) - c0
+            expected = 4 * elapsed / 0.010
+            assert 0.8 * expected <= n <= 1.1 * expected + 4, (n, expected)
+            assert {f.command_id for f in inbox} == set(STREAMS)
+
+
+async def test_manual_clock_runs_a_motion_without_waiting() -> None:
+    clock = ManualClock()
+    async with SimServer(tcp_port=None, udp_port=None, clock=clock) as sim:
+        sg = sim.grippers[0]
+        got: list[Frame] = []
+        s = sg.gripper.open_session("test", deliver=got.append)
+        r = sg.gripper.handle_frame(s, Frame(0x20, CATALOG[0x20].encode_request(direction=0)))
+        assert r[-1].status == Status.E_CMD_PENDING
+        clock.advance(10.0)  # ten seconds of device time, none of real time
+        sg.runner.poll_now()
+        finals = [f for f in got if f.command_id == 0x20]
+        assert finals and finals[0].status == Status.E_SUCCESS
+        inbox = subscribe(sg.gripper)
+        clock.advance(0.1)
+        sg.runner.poll_now()
+        assert len(inbox) == 4 * 10 or len(inbox) == 4  # catch-up without bursts is the device's call
+        assert all(f.status == Status.E_SUCCESS for f in inbox)
+
+
+@pytest.mark.realtime
+async def test_auto_update_interval_error_is_small() -> None:
+    async with SimServer(tcp_port=None, udp_port=None) as sim:
+        sg = sim.grippers[0]
+        stamps: list[float] = []
+        s = sg.gripper.open_session("test", deliver=lambda f: stamps.append(time.monotonic()))
+        sg.gripper.handle_frame(s, Frame(0x43, CATALOG[0x43].encode_request(flags=1, period_ms=10)))
+        sg.runner.wake()
+        await asyncio.sleep(1.0)
+        gaps = sorted(abs(b - a - 0.010) * 1000 for a, b in itertools.pairwise(stamps))
+        assert len(gaps) >= 80
+        # the cadence holds (a sleep-per-packet loop runs ~12 % slow); slack for a starved CPU,
+        # where the device skips rather than bursts
+        mean_period = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
+        assert abs(mean_period - 0.010) < 0.0008, mean_period
+        # p99 <= 1 ms is the target on a quiet machine (docs/benchmarks.md); the test box is shared
+        # with other test runs, so only the median is held tight here
+        assert gaps[len(gaps) // 2] < 1.0, gaps
