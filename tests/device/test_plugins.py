@@ -61,8 +61,8 @@ def test_umi_pd_control_tracks_position(homed: Rig) -> None:
         reply = homed.call(0xB1, req)
         assert reply.status == S.E_SUCCESS and len(reply.params) == 17
         homed.clock.advance(1 / 30)
-    state, pos, vel, force, t = struct.unpack("<B4f", homed.call(0xB0, b"").params)
-    assert pos == pytest.approx(target, abs=0.5)
+    state, pos, vel, _force, t = struct.unpack("<B4f", homed.call(0xB0, b"").params)
+    assert pos == pytest.approx(target, abs=0.5) and abs(vel) < 1.0
     assert t == pytest.approx(homed.clock.now, rel=1e-6)
     assert state == int(homed.g.system_flags()) & 0xFF
 
@@ -73,7 +73,7 @@ def test_umi_blocked_force_limit(homed: Rig) -> None:
     for _ in range(200):
         homed.call(0xB1, struct.pack("<B6f", 0, 0.0, 0.0, 10.0, 0.0, 20.0, 45.0))
         homed.clock.advance(1 / 30)
-    _, pos, vel, force, _ = struct.unpack("<B4f", homed.call(0xB0, b"").params)
+    _, pos, _vel, force, _ = struct.unpack("<B4f", homed.call(0xB0, b"").params)
     assert pos == pytest.approx(30.0) and force == pytest.approx(45.0)
     assert homed.g.blocked()
 

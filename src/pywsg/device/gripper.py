@@ -49,7 +49,6 @@ if TYPE_CHECKING:
     from .plugins import FirmwarePlugin
 
 S = Status
-SF = SystemFlag
 GS = GripperState
 
 _U8 = struct.Struct("<B")
@@ -66,6 +65,26 @@ _INFO = CATALOG[Command.GET_SYSTEM_INFO].reply_layout.struct
 _LIMITS = CATALOG[Command.GET_SYSTEM_LIMITS].reply_layout.struct
 _FINGER_INFO = CATALOG[Command.GET_FINGER1_INFO].reply_layout.struct
 _TEMP = CATALOG[Command.GET_TEMPERATURE].reply_layout.struct
+
+_SF_AXIS_STOPPED = int(SystemFlag.SF_AXIS_STOPPED)
+_SF_BLOCKED_MINUS = int(SystemFlag.SF_BLOCKED_MINUS)
+_SF_BLOCKED_PLUS = int(SystemFlag.SF_BLOCKED_PLUS)
+_SF_CMD_FAILURE = int(SystemFlag.SF_CMD_FAILURE)
+_SF_CURR_FAULT = int(SystemFlag.SF_CURR_FAULT)
+_SF_FAST_STOP = int(SystemFlag.SF_FAST_STOP)
+_SF_FINGER_FAULT = int(SystemFlag.SF_FINGER_FAULT)
+_SF_FORCECNTL_MODE = int(SystemFlag.SF_FORCECNTL_MODE)
+_SF_MOVING = int(SystemFlag.SF_MOVING)
+_SF_OVERDRIVE_MODE = int(SystemFlag.SF_OVERDRIVE_MODE)
+_SF_POWER_FAULT = int(SystemFlag.SF_POWER_FAULT)
+_SF_REFERENCED = int(SystemFlag.SF_REFERENCED)
+_SF_SCRIPT_FAILURE = int(SystemFlag.SF_SCRIPT_FAILURE)
+_SF_SCRIPT_RUNNING = int(SystemFlag.SF_SCRIPT_RUNNING)
+_SF_SOFT_LIMIT_MINUS = int(SystemFlag.SF_SOFT_LIMIT_MINUS)
+_SF_SOFT_LIMIT_PLUS = int(SystemFlag.SF_SOFT_LIMIT_PLUS)
+_SF_TARGET_POS_REACHED = int(SystemFlag.SF_TARGET_POS_REACHED)
+_SF_TEMP_FAULT = int(SystemFlag.SF_TEMP_FAULT)
+_SF_TEMP_WARNING = int(SystemFlag.SF_TEMP_WARNING)
 
 SOFT_EPS = 1e-6  # mm: a soft limit is violated only strictly beyond it
 POS_EPS = 1e-6
@@ -197,7 +216,7 @@ class VirtualGripper:
         self._motion: Motion | None = None
         self._contact: Contact | None = None
         self._event: tuple[float, int, str, object] | None = None
-        self._bits = SF.NONE  # latched flags: FAST_STOP, AXIS_STOPPED, TARGET_POS_REACHED, CMD_FAILURE, ...
+        self._bits = 0  # latched flags: FAST_STOP, AXIS_STOPPED, TARGET_POS_REACHED, CMD_FAILURE, ...
         self.obstacles: dict[str, Obstacle] = {}
         self.stats = [0, 0, 0]
         self.tag: str | None = None
@@ -343,7 +362,7 @@ class VirtualGripper:
         out = self._take_outbox(s) if self._outbox else []
         if s.denied or s.announced:
             status = S.E_ACCESS_DENIED
-        self._bits |= SF.SF_CMD_FAILURE
+        self._bits |= _SF_CMD_FAILURE
         out.append(Frame.reply(command_id, status))
         self._changed()
         return out
@@ -378,11 +397,11 @@ class VirtualGripper:
         p = reply.payload
         code = p[0] | (p[1] << 8)
         if code not in (0, S.E_CMD_PENDING):
-            if not self._bits & SF.SF_CMD_FAILURE:
-                self._bits |= SF.SF_CMD_FAILURE
+            if not self._bits & _SF_CMD_FAILURE:
+                self._bits |= _SF_CMD_FAILURE
                 self._changed()
-        elif cid not in QUERY_IDS and self._bits & SF.SF_CMD_FAILURE:
-            self._bits &= ~SF.SF_CMD_FAILURE
+        elif cid not in QUERY_IDS and self._bits & _SF_CMD_FAILURE:
+            self._bits &= ~_SF_CMD_FAILURE
             self._changed()
         if not self._due_valid:
             self._notify()
@@ -491,7 +510,7 @@ class VirtualGripper:
 
     def _value_for(self, cid: int, now: float) -> float | int:
         if cid == Command.GET_SYSTEM_STATE:
-            return int(self.system_flags(now))
+            return self._flag_bits(now)
         if cid == Command.GET_GRIPPER_STATE:
             return int(self.gstate)
         if cid == Command.GET_OPENING_WIDTH:
@@ -573,43 +592,45 @@ class VirtualGripper:
 
     def system_flags(self, now: float | None = None) -> SystemFlag:
         """The 40h system state flags (Appendix B) at ``now``."""
-        if now is None:
-            now = self.clock()
+        return SystemFlag(self._flag_bits(self.clock() if now is None else now))
+
+    def _flag_bits(self, now: float) -> int:
         f = self._bits
         if self.referenced:
-            f |= SF.SF_REFERENCED
+            f |= _SF_REFERENCED
             if self.soft_limits is not None:
                 x = self._traj.position(now)
                 if x <= self.soft_limits[0] + POS_EPS:
-                    f |= SF.SF_SOFT_LIMIT_MINUS
+                    f |= _SF_SOFT_LIMIT_MINUS
                 if x >= self.soft_limits[1] - POS_EPS:
-                    f |= SF.SF_SOFT_LIMIT_PLUS
+                    f |= _SF_SOFT_LIMIT_PLUS
         if self._traj.is_moving(now):
-            f |= SF.SF_MOVING
+            f |= _SF_MOVING
         if self.overdrive:
-            f |= SF.SF_OVERDRIVE_MODE
+            f |= _SF_OVERDRIVE_MODE
         if self.gstate in (GS.GRIPPING, GS.HOLDING) and any(
                 fg.type == FingerType.WSG_FMF and fg.powered and not fg.fault for fg in self.fingers):
-            f |= SF.SF_FORCECNTL_MODE
+            f |= _SF_FORCECNTL_MODE
         if self._temp_state >= 1:
-            f |= SF.SF_TEMP_WARNING
+            f |= _SF_TEMP_WARNING
         if self._temp_state >= 2:
-            f |= SF.SF_TEMP_FAULT
+            f |= _SF_TEMP_FAULT
         if self.power_fault:
-            f |= SF.SF_POWER_FAULT
+            f |= _SF_POWER_FAULT
         if self.current_fault:
-            f |= SF.SF_CURR_FAULT
-        if any(fg.fault or fg.comm_fault for fg in self.fingers):
-            f |= SF.SF_FINGER_FAULT
+            f |= _SF_CURR_FAULT
+        f0, f1 = self.fingers
+        if f0.fault or f0.comm_fault or f1.fault or f1.comm_fault:
+            f |= _SF_FINGER_FAULT
         if self.plugins:
-            f |= SF.SF_SCRIPT_RUNNING
+            f |= _SF_SCRIPT_RUNNING
         if self.script_failure:
-            f |= SF.SF_SCRIPT_FAILURE
+            f |= _SF_SCRIPT_FAILURE
         return f
 
     @property
     def fast_stopped(self) -> bool:
-        return bool(self._bits & SF.SF_FAST_STOP)
+        return bool(self._bits & _SF_FAST_STOP)
 
     def snapshot(self) -> Snapshot:
         now = self.clock()
@@ -645,11 +666,12 @@ class VirtualGripper:
             t = tr.first_crossing(ob.width, ob.blocks, after=now)
             if t is not None and (best is None or (t, 0) < best[:2]):
                 best = (t, 0, "contact", ob)
-        stroke = self.profile.stroke
-        for p, d in ((0.0, -1), (stroke, 1)):
-            t = tr.first_crossing(p, d, after=now)
-            if t is not None and (best is None or (t, 2) < best[:2]):
-                best = (t, 2, "hard", p)
+        if not math.isfinite(tr.end_time):  # moves stay inside the stroke; jogs run to an end stop
+            stroke = self.profile.stroke
+            for p, d in ((0.0, -1), (stroke, 1)):
+                t = tr.first_crossing(p, d, after=now)
+                if t is not None and (best is None or (t, 2) < best[:2]):
+                    best = (t, 2, "hard", p)
         if self.soft_limits is not None and m.kind != "homing" and self.referenced:
             lo, hi = self.soft_limits
             x = tr.position(now)
@@ -662,7 +684,7 @@ class VirtualGripper:
         return best
 
     def _start(self, now: float, motion: Motion, traj: Trajectory) -> None:
-        self._bits &= ~(SF.SF_AXIS_STOPPED | SF.SF_TARGET_POS_REACHED | SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS)
+        self._bits &= ~(_SF_AXIS_STOPPED | _SF_TARGET_POS_REACHED | _SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS)
         self._contact = None
         self._motion = motion
         self._traj = traj
@@ -682,7 +704,7 @@ class VirtualGripper:
         if m is not None and m.command_id is not None:
             self._emit(m.session, Frame.reply(m.command_id, status))
             if status != S.E_SUCCESS:
-                self._bits |= SF.SF_CMD_FAILURE
+                self._bits |= _SF_CMD_FAILURE
 
     def _abort_motion(self, status: Status, now: float) -> bool:
         """Stop a running motion (or clamping); returns True if one was running."""
@@ -710,7 +732,7 @@ class VirtualGripper:
             assert isinstance(data, float)
             self._halt(t, data)
             d = 1 if data > 0 else -1
-            self._bits |= SF.SF_BLOCKED_PLUS if d > 0 else SF.SF_BLOCKED_MINUS
+            self._bits |= _SF_BLOCKED_PLUS if d > 0 else _SF_BLOCKED_MINUS
             if m.kind == "homing":  # cannot happen: homing targets the end stop
                 self._on_end(t, m)
                 return
@@ -738,12 +760,12 @@ class VirtualGripper:
         if m.kind == "homing":
             self.referenced = True
             self.gstate = GS.IDLE
-            self._bits |= SF.SF_TARGET_POS_REACHED
+            self._bits |= _SF_TARGET_POS_REACHED
             self.log.add(t, LogLevel.INFO, f"homing done at {x:.2f} mm")
             self._finish_with(m, S.E_SUCCESS)
         elif m.kind in ("prepos", "release", "snap", "script"):
             self.gstate = GS.IDLE
-            self._bits |= SF.SF_TARGET_POS_REACHED
+            self._bits |= _SF_TARGET_POS_REACHED
             self._finish_with(m, S.E_SUCCESS)
         elif m.kind == "grip":
             # fell through the clamping travel without establishing the force
@@ -758,7 +780,7 @@ class VirtualGripper:
     def _on_contact(self, t: float, m: Motion, ob: Obstacle) -> None:
         x = ob.width
         d = m.direction
-        blocked_bit = SF.SF_BLOCKED_PLUS if d > 0 else SF.SF_BLOCKED_MINUS
+        blocked_bit = _SF_BLOCKED_PLUS if d > 0 else _SF_BLOCKED_MINUS
         if m.kind == "grip":
             lo, hi = m.nominal - self.settings.clamping_travel, m.nominal + self.settings.clamping_travel
             if ob.kind == "part" and lo - POS_EPS <= x <= hi + POS_EPS:
@@ -808,7 +830,7 @@ class VirtualGripper:
         if c is not None and self.obstacles.get(c.obstacle.kind) is not c.obstacle:
             self._contact = None
             x = self._traj.position(now)
-            self._bits &= ~(SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS)
+            self._bits &= ~(_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS)
             if c.kind == "hold":
                 self.gstate = GS.PART_LOST
                 self.stats[2] += 1
@@ -822,8 +844,8 @@ class VirtualGripper:
             elif c.kind == "clamp":
                 self._motion = Motion("snap", None, None, c.target, c.speed, c.direction)
                 self._traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
-        elif self._motion is None and self._bits & (SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS):
-            self._bits &= ~(SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS)
+        elif self._motion is None and self._bits & (_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS):
+            self._bits &= ~(_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS)
         self._update_load(now)
         self._reschedule(now)
         self._changed()
@@ -840,7 +862,7 @@ class VirtualGripper:
             self.gstate = GS.ERROR
         if self._contact is not None and self._contact.kind != "hold":
             self._contact = None
-        self._bits |= SF.SF_FAST_STOP
+        self._bits |= _SF_FAST_STOP
         self.log.add(now, LogLevel.ERROR, f"FAST STOP: {reason}")
         self._update_load(now)
         self._reschedule(now)
@@ -859,8 +881,8 @@ class VirtualGripper:
         self._advance(now)
         if self.power_fault or self.current_fault:
             return S.E_ACCESS_DENIED
-        if self._bits & SF.SF_FAST_STOP:
-            self._bits &= ~SF.SF_FAST_STOP
+        if self._bits & _SF_FAST_STOP:
+            self._bits &= ~_SF_FAST_STOP
             self.log.add(now, LogLevel.INFO, "FAST STOP acknowledged")
             self._changed()
         return S.E_SUCCESS
@@ -959,7 +981,7 @@ class VirtualGripper:
     def _motion_denied(self, now: float, need_reference: bool = True,
                        replaces: tuple[str, ...] = ()) -> Status | None:
         """Why a motion may not start now, or None. ``replaces``: motion kinds it may supersede."""
-        if self._bits & SF.SF_FAST_STOP or self._temp_state >= 2 or self.power_fault or self.current_fault:
+        if self._bits & _SF_FAST_STOP or self._temp_state >= 2 or self.power_fault or self.current_fault:
             return S.E_ACCESS_DENIED
         m = self._motion
         if (m is not None or self._traj.is_moving(now)) and (m is None or m.kind not in replaces):
@@ -1060,7 +1082,7 @@ class VirtualGripper:
             self._motion = None
         if self._contact is not None and self._contact.kind == "press":
             self._contact = None
-        self._bits &= ~(SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS)
+        self._bits &= ~(_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS)
         self._update_load(now)
         self._reschedule(now)
         self._changed()
@@ -1081,7 +1103,7 @@ class VirtualGripper:
         self._changed()
 
     def blocked(self) -> bool:
-        return bool(self._bits & (SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS))
+        return bool(self._bits & (_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS))
 
     def _max_force(self) -> float:
         return self.profile.ovr_force if self.overdrive else self.profile.nom_force
@@ -1226,8 +1248,8 @@ class VirtualGripper:
 
     def _cmd_stop(self, s: Session, payload: bytes, now: float) -> Frame:
         was = self._abort_motion(S.E_CMD_ABORTED, now)
-        self._bits |= SF.SF_AXIS_STOPPED
-        self._bits &= ~(SF.SF_BLOCKED_MINUS | SF.SF_BLOCKED_PLUS)
+        self._bits |= _SF_AXIS_STOPPED
+        self._bits &= ~(_SF_BLOCKED_MINUS | _SF_BLOCKED_PLUS)
         if was and self.gstate in (GS.GRIPPING, GS.RELEASING, GS.POSITIONING):
             self.gstate = GS.IDLE
         self._changed()
