@@ -11,7 +11,7 @@ import pytest
 
 from pywsg.cli.plc import run_demo
 from pywsg.fieldbus.plc import AsyncFieldbusGripper, FieldbusError, FieldbusGripper
-from pywsg.protocol import GripperState, Status, SystemFlag
+from pywsg.protocol import CATALOG, Command, Frame, GripperState, Status, SystemFlag
 from pywsg.server import SimServer
 
 pytestmark = pytest.mark.realtime
@@ -22,6 +22,12 @@ WSG = str(Path(sys.executable).parent / "wsg")
 @pytest.fixture
 async def sim() -> AsyncIterator[SimServer]:
     async with SimServer(tcp_port=None, udp_port=None, modbus_port=0) as s:
+        # Fast fingers (30h Set Acceleration, 5000 mm/s²) keep the 3-cycle demo within the test budget.
+        g = s.grippers[0].gripper
+        session = g.open_session("test", peer="test")
+        payload = CATALOG[Command.SET_ACCELERATION].encode_request(acceleration=5000.0)
+        assert g.handle_frame(session, Frame(int(Command.SET_ACCELERATION), payload))[0].status == 0
+        g.close_session(session)
         yield s
 
 
