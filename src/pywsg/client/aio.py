@@ -36,6 +36,8 @@ from .core import (
     DEFAULT_TIMEOUT,
     bad_checksum,
     decode_success,
+    frame_from,
+    is_success,
     needs_flags,
     raise_for,
     sample_of,
@@ -416,6 +418,11 @@ class AsyncGripper:
 
     # ------------------------------------------------------------------ bytes in
     def _on_data(self, data: memoryview) -> None:
+        if not self._parser.buffered:
+            frame = frame_from(data, self.verify_checksum)
+            if frame is not None:
+                self._on_event(frame)
+                return
         for ev in self._parser.feed(data):
             self._on_event(ev)
 
@@ -520,9 +527,9 @@ class AsyncGripper:
         return await self._result(call, frame)
 
     async def _result(self, call: Call[T], frame: Frame) -> T:
-        st = status_of(frame)
-        if st == Status.E_SUCCESS:
+        if is_success(frame):
             return decode_success(call, frame)
+        st = status_of(frame)
         if st in call.none_on:
             return None  # type: ignore[return-value]
         flags = await self._flags_quietly() if needs_flags(call, st) else None

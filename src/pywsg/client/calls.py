@@ -54,6 +54,7 @@ class Call(Generic[T]):
     none_on: frozenset[int] = field(default_factory=frozenset)  # statuses that mean "no value": result None
     raw: bool = False  # custom request: the result is a Reply, errors are the caller's choice
     auto_read: bool = False  # a one-off read of an auto-update value (flags 0: it would end a subscription)
+    fast: Callable[[bytes], T] | None = None  # whole reply payload (status included) -> result, fixed layouts
 
 
 def _none(_v: Values) -> None:
@@ -65,7 +66,24 @@ def _make(cmd: Command, decode: Callable[[Values], T], none_on: frozenset[int] =
     spec = CATALOG[cmd]
     payload = spec.encode_request(values) if spec.request else b""
     return Call(int(cmd), encode_frame(int(cmd), payload), decode, pending=spec.kind is not Kind.IMMEDIATE,
-                motion=spec.motion, none_on=none_on, auto_read=auto_read)
+                motion=spec.motion, none_on=none_on, auto_read=auto_read, fast=_fast_decoder(spec, decode))
+
+
+def _fast_decoder(spec: Any, decode: Callable[[Values], T]) -> Callable[[bytes], T] | None:
+    """One struct.unpack_from for fixed reply layouts (the hot path of state reads); the decoders
+    of 40h/41h convert their enums themselves. Raises ValueError on a wrong length."""
+    layout = spec.reply_layout
+    if layout.variable is not None or any(f.enum not in (None, SystemFlag, GripperState) for f in layout.fixed):
+        return None
+    st = layout.struct
+    size = 2 + st.size
+    names = tuple(f.name for f in layout.fixed)
+
+    def fast(payload: bytes) -> T:
+        if len(payload) != size:
+            raise ValueError(f"expected {size - 2} bytes, got {len(payload) - 2}")
+        return decode(dict(zip(names, st.unpack_from(payload, 2), strict=True)))
+    return fast
 
 
 def _float(name: str) -> Callable[[Values], float]:
@@ -179,11 +197,21 @@ def _read_flags(auto: bool, change_only: bool) -> int:
     return int((AutoUpdateFlag.AUTO_UPDATE if auto else 0) | (AutoUpdateFlag.CHANGE_ONLY if change_only else 0))
 
 
+def _gstate(v: Values) -> GripperState | int:
+    x = v["state"]
+    if isinstance(x, GripperState):
+        return x
+    try:
+        return GripperState(cast(int, x))
+    except ValueError:
+        return cast(int, x)
+
+
 def decode_sample(cmd: int, v: Values) -> SystemFlag | GripperState | float | int:
     if cmd == Command.GET_SYSTEM_STATE:
         return SystemFlag(cast(int, v["state"]))
     if cmd == Command.GET_GRIPPER_STATE:
-        return cast("GripperState | int", v["state"])
+        return _gstate(v)
     return float(cast(float, v[CATALOG[cmd].reply[0].name]))
 
 
@@ -195,8 +223,7 @@ def system_state() -> Call[SystemFlag]:
 
 @cache
 def gripper_state() -> Call[GripperState | int]:
-    return _make(Command.GET_GRIPPER_STATE, lambda v: cast("GripperState | int", v["state"]),
-                 flags=0, period_ms=0, auto_read=True)
+    return _make(Command.GET_GRIPPER_STATE, _gstate, flags=0, period_ms=0, auto_read=True)
 
 
 @cache

@@ -41,6 +41,8 @@ from .core import (
     DEFAULT_TIMEOUT,
     bad_checksum,
     decode_success,
+    frame_from,
+    is_success,
     needs_flags,
     raise_for,
     sample_of,
@@ -241,9 +243,11 @@ class Gripper:
         self.connect_timeout = connect_timeout
         self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
         self.verify_checksum = verify_checksum
-        self._cv = threading.Condition(threading.Lock())
+        self._lock = threading.Lock()
+        self._cv = threading.Condition(self._lock)  # hot paths enter self._lock directly (C-level)
         self._send_lock = threading.Lock()
         self._reading = False
+        self._sleepers = 0  # threads waiting on self._cv
         self._transport: SyncTransport | None = None
         self._parser = FrameParser(verify_checksum)
         self._demux = Demux(time.monotonic)
@@ -290,7 +294,7 @@ class Gripper:
             t = open_sync(self.endpoint, self.connect_timeout)
         except OSError as exc:
             raise ConnectionLostError(f"cannot connect to {self.endpoint}: {exc}") from exc
-        with self._cv:
+        with self._lock:
             self._parser = FrameParser(self.verify_checksum)
             self._transport = t
             self._closing = False
@@ -315,7 +319,7 @@ class Gripper:
     def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
         ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
-        with self._cv:
+        with self._lock:
             t, self._transport = self._transport, None
             self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
             streams = [(cmd, st) for cmd, lst in self._streams.items() for st in lst]
@@ -388,6 +392,11 @@ class Gripper:
     # ------------------------------------------------------------------ reading
     def _feed(self, data: bytes) -> None:
         """Route received bytes (call with self._cv held)."""
+        if not self._parser.buffered:
+            frame = frame_from(data, self.verify_checksum)
+            if frame is not None:
+                self._on_event(frame)
+                return
         t = self._transport
         events = parse_datagram(data, self.verify_checksum) if t is not None and t.datagram else \
             self._parser.feed(data)
@@ -420,7 +429,8 @@ class Gripper:
         TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does."""
         deadline = time.monotonic() + timeout
         cv = self._cv
-        with cv:
+        lock = self._lock
+        with lock:
             while not w.done:
                 if not self._reading:
                     self._reading = True
@@ -430,7 +440,11 @@ class Gripper:
                     if abandon:
                         self._expire(w, timeout)
                     return
-                cv.wait(remaining)
+                self._sleepers += 1
+                try:
+                    cv.wait(remaining)
+                finally:
+                    self._sleepers -= 1
             else:
                 return
         # this thread reads
@@ -442,24 +456,26 @@ class Gripper:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     if abandon:
-                        with cv:
+                        with lock:
                             self._expire(w, timeout)
                     break
                 try:
                     data = t.recv(remaining)
                 except OSError as exc:
-                    with cv:
+                    with lock:
                         self._reading = False
                     self._lost(exc)
                     return
                 if data:
-                    with cv:
+                    with lock:
                         self._feed(data)
-                        cv.notify_all()
+                        if self._sleepers:
+                            cv.notify_all()
         finally:
-            with cv:
+            with lock:
                 self._reading = False
-                cv.notify_all()
+                if self._sleepers:
+                    cv.notify_all()
 
     def _expire(self, w: Waiter, timeout: float) -> None:
         if not w.done:
@@ -483,7 +499,7 @@ class Gripper:
         return t
 
     def _send(self, t: SyncTransport, waiters: list[Waiter], wires: list[bytes]) -> None:
-        with self._cv:
+        with self._lock:
             for w in waiters:
                 self._demux.expect(w)
         if self._comm.active:
@@ -519,9 +535,9 @@ class Gripper:
         return self._result(call, frame)
 
     def _result(self, call: Call[T], frame: Frame) -> T:
-        st = status_of(frame)
-        if st == Status.E_SUCCESS:
+        if is_success(frame):
             return decode_success(call, frame)
+        st = status_of(frame)
         if st in call.none_on:
             return None  # type: ignore[return-value]
         raise raise_for(call, frame, self._flags_quietly() if needs_flags(call, st) else None)
@@ -533,7 +549,7 @@ class Gripper:
             motion = Motion(self, call, final)
         else:
             if final is not None:
-                with self._cv:
+                with self._lock:
                     self._demux.forget_final(final)
             if st != Status.E_SUCCESS:
                 raise raise_for(call, frame, self._flags_quietly())
@@ -567,7 +583,7 @@ class Gripper:
             assert final.frame is not None
             frame = final.frame
         elif final is not None:
-            with self._cv:
+            with self._lock:
                 self._demux.forget_final(final)
         st = status_of(frame)
         if check and st != Status.E_SUCCESS:
@@ -721,13 +737,13 @@ class Gripper:
         ``change_only``. ``callback(sample)`` runs on a callback thread and may call the gripper."""
         cmd = stream_id(what)
         stream = Stream(self, cmd, maxlen, callback)
-        with self._cv:
+        with self._lock:
             self._streams.setdefault(cmd, []).append(stream)
             self._demux.add_stream(cmd, stream)
         try:
             self._run(calls.subscribe(cmd, period, change_only))
         except BaseException:
-            with self._cv:
+            with self._lock:
                 self._demux.remove_stream(cmd, stream)
                 self._streams[cmd].remove(stream)
             raise
@@ -737,7 +753,7 @@ class Gripper:
 
     def _unsubscribe(self, stream: Stream) -> None:
         cmd = stream.command
-        with self._cv:
+        with self._lock:
             self._demux.remove_stream(cmd, stream)
             lst = self._streams.get(cmd, [])
             if stream in lst:

@@ -1,0 +1,219 @@
+"""Driver round trips against `wsg sim` on loopback, each beside a raw client of the same kind.
+
+    .venv/bin/python benchmarks/bench_driver.py [--seconds 1.5] [--rounds 3] [--uvloop]
+
+Prints, for Get Gripper State (41h):
+- blocking: a raw socket client (sendall + recv of the same bytes) vs ``Gripper.gripper_state()``;
+- asyncio: a raw ``BufferedProtocol`` client vs ``AsyncGripper.gripper_state()``;
+round trips/s and p50/p99 latency, the ratio driver/raw (target <= 1.3x), and the added latency of a
+command while 4 auto-update streams (40h, 41h, 43h, 45h) run at 10 ms. Rounds alternate between
+the clients; the best round of each is reported (the machine is shared).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from pywsg import AsyncGripper, Gripper
+from pywsg.protocol import Command, encode_frame
+
+REQ = encode_frame(Command.GET_GRIPPER_STATE, b"\x00\x00\x00")
+REPLY_LEN = 6 + 3 + 2  # header, status + state, CRC
+DISCONNECT = encode_frame(Command.DISCONNECT)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def start_sim(port: int, uvloop: bool) -> subprocess.Popen[bytes]:
+    wsg = Path(sys.executable).with_name("wsg")
+    cmd = [str(wsg), "sim", "--host", "127.0.0.1", "--tcp-port", str(port), "--udp-port", "0", "--serial", "off",
+           "--web-port", "0", "--uvloop" if uvloop else "--no-uvloop"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:  # wait for its "gripper 0: TCP tcp://..." line
+        line = proc.stdout.readline().decode(errors="replace")
+        if not line:
+            break
+        if "TCP" in line:
+            return proc
+    proc.kill()
+    raise SystemExit("wsg sim did not start")
+
+
+class Result:
+    def __init__(self, name: str, lat: list[float], wall: float) -> None:
+        self.name = name
+        self.n = len(lat)
+        self.rate = self.n / wall
+        lat.sort()
+        self.p50 = lat[len(lat) // 2] * 1e6
+        self.p99 = lat[int(len(lat) * 0.99)] * 1e6
+
+    def line(self) -> str:
+        return f"{self.name:<44} {self.rate:>9,.0f} rt/s   p50 {self.p50:7.1f} µs   p99 {self.p99:7.1f} µs"
+
+
+def timed(fn: Callable[[], object], seconds: float) -> tuple[list[float], float]:
+    lat: list[float] = []
+    pc = time.perf_counter
+    t0 = pc()
+    end = t0 + seconds
+    while True:
+        a = pc()
+        fn()
+        b = pc()
+        lat.append(b - a)
+        if b > end:
+            return lat, b - t0
+
+
+# ---------------------------------------------------------------- blocking
+def raw_blocking(port: int, seconds: float) -> Result:
+    s = socket.create_connection(("127.0.0.1", port))
+    s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def once() -> None:
+        s.sendall(REQ)
+        got = 0
+        while got < REPLY_LEN:
+            got += len(s.recv(4096))
+
+    once()
+    lat, wall = timed(once, seconds)
+    s.sendall(DISCONNECT)
+    s.recv(64)
+    s.close()
+    return Result("raw blocking socket", lat, wall)
+
+
+def driver_blocking(port: int, seconds: float, streams: bool = False) -> Result:
+    with Gripper(f"tcp://127.0.0.1:{port}") as g:
+        subs = [g.subscribe(n, 0.01) for n in ("system_state", "gripper_state", "width", "force")] if streams else []
+        g.gripper_state()
+        lat, wall = timed(g.gripper_state, seconds)
+        for s in subs:
+            s.close()
+    return Result("Gripper.gripper_state()" + (" + 4 streams @10 ms" if streams else ""), lat, wall)
+
+
+# ---------------------------------------------------------------- asyncio
+class _RawProto(asyncio.BufferedProtocol):
+    def __init__(self) -> None:
+        self.buf = memoryview(bytearray(65536))
+        self.got = 0
+        self.fut: asyncio.Future[None] | None = None
+
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self.buf
+
+    def buffer_updated(self, nbytes: int) -> None:
+        self.got += nbytes
+        if self.got >= REPLY_LEN and self.fut is not None and not self.fut.done():
+            self.got -= REPLY_LEN
+            self.fut.set_result(None)
+
+
+async def raw_async(port: int, seconds: float) -> Result:
+    loop = asyncio.get_running_loop()
+    t, p = await loop.create_connection(_RawProto, "127.0.0.1", port)
+
+    async def once() -> None:
+        p.fut = loop.create_future()
+        t.write(REQ)
+        await p.fut
+
+    await once()
+    lat, wall = await atimed(once, seconds)
+    p.fut = loop.create_future()
+    t.write(DISCONNECT)
+    await asyncio.sleep(0.01)
+    t.close()
+    return Result("raw asyncio BufferedProtocol", lat, wall)
+
+
+async def atimed(fn: Callable[[], object], seconds: float) -> tuple[list[float], float]:
+    lat: list[float] = []
+    pc = time.perf_counter
+    t0 = pc()
+    end = t0 + seconds
+    while True:
+        a = pc()
+        await fn()  # type: ignore[misc]
+        b = pc()
+        lat.append(b - a)
+        if b > end:
+            return lat, b - t0
+
+
+async def driver_async(port: int, seconds: float, streams: bool = False) -> Result:
+    async with AsyncGripper(f"tcp://127.0.0.1:{port}") as g:
+        subs = [await g.subscribe(n, 0.01) for n in ("system_state", "gripper_state", "width", "force")] \
+            if streams else []
+        await g.gripper_state()
+        lat, wall = await atimed(g.gripper_state, seconds)
+        for s in subs:
+            await s.close()
+    return Result("AsyncGripper.gripper_state()" + (" + 4 streams @10 ms" if streams else ""), lat, wall)
+
+
+def best(results: list[Result]) -> Result:
+    return max(results, key=lambda r: r.rate)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=1.5)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--uvloop", action="store_true", help="run the asyncio clients on uvloop")
+    ap.add_argument("--sim-uvloop", action="store_true", help="run wsg sim on uvloop (default: stock asyncio)")
+    args = ap.parse_args()
+    port = free_port()
+    proc = start_sim(port, args.sim_uvloop)
+    runner: Callable[..., object] = asyncio.run
+    if args.uvloop:
+        import uvloop
+
+        runner = uvloop.run
+    try:
+        rows: dict[str, list[Result]] = {}
+        for _ in range(args.rounds):
+            for r in (raw_blocking(port, args.seconds), driver_blocking(port, args.seconds),
+                      runner(raw_async(port, args.seconds)), runner(driver_async(port, args.seconds)),
+                      driver_blocking(port, args.seconds, streams=True),
+                      runner(driver_async(port, args.seconds, streams=True))):
+                rows.setdefault(r.name, []).append(r)  # type: ignore[union-attr]
+        res = {k: best(v) for k, v in rows.items()}
+        print(f"# driver round trips, 41h Get Gripper State, loopback, wsg sim (pid {proc.pid}), "
+              f"{os.cpu_count()} CPUs, best of {args.rounds} x {args.seconds:g} s"
+              f"{', client on uvloop' if args.uvloop else ''}, sim on {'uvloop' if args.sim_uvloop else 'asyncio'}")
+        for r in res.values():
+            print(r.line())
+        rb, db = res["raw blocking socket"], res["Gripper.gripper_state()"]
+        ra, da = res["raw asyncio BufferedProtocol"], res["AsyncGripper.gripper_state()"]
+        print(f"blocking: raw/driver rate ratio {rb.rate / db.rate:.2f}x (target <= 1.3x)")
+        print(f"asyncio:  raw/driver rate ratio {ra.rate / da.rate:.2f}x (target <= 1.3x)")
+        sb = res["Gripper.gripper_state() + 4 streams @10 ms"]
+        sa = res["AsyncGripper.gripper_state() + 4 streams @10 ms"]
+        print(f"added latency with 4 streams @10 ms: blocking p50 {sb.p50 - db.p50:+.1f} µs, p99 {sb.p99 - db.p99:+.1f} µs;"
+              f" asyncio p50 {sa.p50 - da.p50:+.1f} µs, p99 {sa.p99 - da.p99:+.1f} µs")
+    finally:
+        proc.terminate()
+        proc.wait(5)
+
+
+if __name__ == "__main__":
+    main()
