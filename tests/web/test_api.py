@@ -11,6 +11,7 @@ import json
 import socket
 import struct
 import time
+from pathlib import Path
 
 import httpx
 import pytest
@@ -327,3 +328,24 @@ def test_websocket_refuses_a_foreign_origin(sim: LiveSim) -> None:
     with pytest.raises(InvalidStatus) as info:
         ws_client.connect(url, origin=Origin("http://evil.example"))
     assert info.value.response.status_code == 403
+
+
+async def test_wsg_sim_serves_the_web_interface_with_fieldbus_and_interfaces(tmp_path: Path) -> None:
+    """The path ``wsg sim --web-port`` takes: SimServer passes sim_info, the fieldbus controller and
+    the settings file to serve_web."""
+    from pywsg.server import SimServer
+
+    settings = tmp_path / "s.json"
+    async with SimServer(tcp_port=0, udp_port=None, modbus_port=0, web_port=0, settings=settings) as server:
+        port = server.grippers[0].web_port
+        async with httpx.AsyncClient(base_url=f"http://127.0.0.1:{port}") as c:
+            assert "Fieldbus Monitor" in (await c.get("/diagnosis/fieldbus")).text
+            assert (await c.get("/api/fieldbus")).json()["available"] is True
+            data = (await c.get("/api/settings")).json()
+            assert data["interfaces"]["tcp"] == f"tcp://127.0.0.1:{server.tcp_port}"
+            assert data["settings_file"] == str(settings)
+            token = (await c.get("/api/csrf")).json()["token"]
+            r = await c.post("/api/settings", json={"fast_stop_on_disconnect": False},
+                             headers={"X-CSRF-Token": token})
+            assert r.status_code == 200 and r.json()["saved"] == str(settings)
+    assert json.loads(settings.read_text())["fast_stop_on_disconnect"] is False
