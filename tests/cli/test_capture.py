@@ -144,3 +144,25 @@ def test_not_hex_is_an_error(tmp_path: Path) -> None:
     p.write_text("hello world\n")
     r = run_wsg("decode", "-f", str(p))
     assert r.code == 1 and "not a hex byte" in r.err
+
+
+def test_lost_segment_and_truncated_tail(tmp_path: Path) -> None:
+    # client: REQ, then a segment is missing (never captured), then DONE; server: PENDING cut short
+    pkts = [
+        (1.0, tcp(CLIENT, SERVER, 100, REQ)),
+        (1.1, tcp(CLIENT, SERVER, 100 + len(REQ) + 5, WIDTH_REQ)),  # 5 bytes before it were lost
+        (1.2, tcp(SERVER, CLIENT, 900, PENDING[:6])),
+    ]
+    frames = frames_from_capture(write_pcap(tmp_path / "lossy.pcap", pkts))
+    assert frames[0].decoded.raw == REQ
+    errors = [c.decoded.error for c in frames if c.decoded.error]
+    assert any("5 byte(s) missing" in (e or "") for e in errors)
+    assert any(c.decoded.raw == WIDTH_REQ and c.decoded.error is None for c in frames)  # resynchronised
+    tail = [c for c in frames if c.decoded.error and "truncated" in c.decoded.error]
+    assert tail == []  # a stream without a complete frame is not reported (not WSG traffic, as far as we know)
+    pkts.append((1.3, tcp(SERVER, CLIENT, 906, PENDING[6:] + DONE[:4])))
+    frames = frames_from_capture(write_pcap(tmp_path / "lossy2.pcap", pkts))
+    tail = [c for c in frames if c.decoded.error and "truncated" in c.decoded.error]
+    assert len(tail) == 1 and tail[0].time == 1.3 and tail[0].src == "127.0.0.1:1000"
+    r = run_wsg("decode", "-f", str(tmp_path / "lossy2.pcap"))
+    assert r.code == 1 and "truncated frame: 4 bytes" in r.out, r

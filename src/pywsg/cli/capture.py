@@ -161,6 +161,7 @@ class _Stream:
     parser: FrameParser = field(default_factory=lambda: FrameParser(verify_checksum=False))
     buf: bytearray = field(default_factory=bytearray)  # bytes fed to the parser, not yet attributed
     seen_frame: bool = False
+    last_time: float = 0.0
     waiting: list[CapturedFrame] = field(default_factory=list)  # problems before the first frame
 
 
@@ -246,7 +247,7 @@ class _Extractor:
             rest = s.parser.pending()
             if rest and s.seen_frame:
                 for d in decode_bytes(rest, s.direction):
-                    yield CapturedFrame(0.0, transport, s.src, s.dst, d)
+                    yield CapturedFrame(s.last_time, transport, s.src, s.dst, d)
 
     def udp(self, ts: float, ip: Any, udp: Any) -> Iterator[CapturedFrame]:
         src, dst = _endpoint(ip.src, udp.sport), _endpoint(ip.dst, udp.dport)
@@ -268,6 +269,7 @@ class _Extractor:
         return CapturedFrame(ts, transport, s.src, s.dst, decoded)
 
     def _feed(self, s: _Stream, ts: float, data: bytes, transport: Transport) -> Iterator[CapturedFrame]:
+        s.last_time = ts
         s.buf += data
         off = 0
         for ev in s.parser.feed(data):

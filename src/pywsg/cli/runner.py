@@ -127,6 +127,8 @@ def fail(exc: BaseException, as_json: bool = False) -> NoReturn:
             message = f"{name} ({int(status)}): {meaning} - {message}"
     else:
         message = str(exc) or type(exc).__name__
+        if isinstance(exc, ValueError | TypeError):  # the driver refused an argument before sending
+            code = EXIT_USAGE
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
     click.echo(f"error: {message}", err=True)
