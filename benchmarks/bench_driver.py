@@ -16,7 +16,6 @@ import argparse
 import asyncio
 import os
 import socket
-import statistics
 import subprocess
 import sys
 import time
@@ -208,8 +207,8 @@ def main() -> None:
         print(f"asyncio:  raw/driver rate ratio {ra.rate / da.rate:.2f}x (target <= 1.3x)")
         sb = res["Gripper.gripper_state() + 4 streams @10 ms"]
         sa = res["AsyncGripper.gripper_state() + 4 streams @10 ms"]
-        print(f"added latency with 4 streams @10 ms: blocking p50 {sb.p50 - db.p50:+.1f} µs, p99 {sb.p99 - db.p99:+.1f} µs;"
-              f" asyncio p50 {sa.p50 - da.p50:+.1f} µs, p99 {sa.p99 - da.p99:+.1f} µs")
+        print(f"added latency with 4 streams @10 ms: blocking p50 {sb.p50 - db.p50:+.1f} µs, "
+              f"p99 {sb.p99 - db.p99:+.1f} µs; asyncio p50 {sa.p50 - da.p50:+.1f} µs, p99 {sa.p99 - da.p99:+.1f} µs")
     finally:
         proc.terminate()
         proc.wait(5)
