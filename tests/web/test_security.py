@@ -6,7 +6,11 @@ cookie is HttpOnly/SameSite=Strict and replaced at login; changes need the CSRF 
 
 from __future__ import annotations
 
+import contextlib
+import json
 import re
+import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -14,7 +18,7 @@ from typing import Any
 import httpx
 import pytest
 import websockets.sync.client as ws_client
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from .conftest import ARTIFACTS, LiveSim
 
@@ -173,3 +177,39 @@ def test_browser_login_flow(remote: LiveSim, browser: Any) -> None:
     finally:
         context.close()
     assert not errors
+
+
+def test_https_session_cookie_is_secure(tmp_path: Path) -> None:
+    key, cert = tmp_path / "key.pem", tmp_path / "cert.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+                    str(cert), "-days", "1", "-subj", "/CN=127.0.0.1"], check=True, capture_output=True)
+    s = LiveSim(tmp_path, host="0.0.0.0", password=PASSWORD, ssl_certfile=str(cert), ssl_keyfile=str(key))
+    try:
+        with httpx.Client(base_url=s.url.replace("http:", "https:"), verify=False) as c:
+            r = login(c)
+            assert r.status_code == 303
+            assert "Secure" in r.headers["set-cookie"] and "HttpOnly" in r.headers["set-cookie"]
+            assert c.get("/api/state").status_code == 200
+    finally:
+        s.close()
+
+
+def test_live_clients_are_capped(tmp_path: Path) -> None:
+    from pywsg.web.app import MAX_LIVE_CLIENTS
+
+    s = LiveSim(tmp_path)
+    url = s.url.replace("http", "ws") + "/ws"
+    try:
+        with contextlib.ExitStack() as stack:
+            conns = [stack.enter_context(ws_client.connect(url)) for _ in range(MAX_LIVE_CLIENTS)]
+            for ws in conns:
+                ws.recv(timeout=2)
+            with ws_client.connect(url) as extra, pytest.raises(ConnectionClosed) as info:
+                extra.recv(timeout=2)
+            assert info.value.rcvd is not None and info.value.rcvd.code == 1013
+            conns[0].close()
+            time.sleep(0.2)
+            with ws_client.connect(url) as again:
+                assert json.loads(again.recv(timeout=2))["type"] == "update"
+    finally:
+        s.close()

@@ -54,6 +54,7 @@ TEMPLATES = HERE / "templates"
 PROJECT_DOCS = HERE.parents[2] / "docs"  # source checkout only; the Help page says when missing
 UPDATE_PERIOD_S = 0.05  # 20 Hz WebSocket updates
 MAX_BODY = 64 * 1024
+MAX_LIVE_CLIENTS = 32  # WebSocket clients per interface: each costs a snapshot every 50 ms
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
 
@@ -243,6 +244,7 @@ class WebContext:
     sim_info: Any = None
     settings_path: Path | None = None
     closing: asyncio.Event = dataclasses.field(default_factory=asyncio.Event)
+    live_clients: int = 0
 
     def model_name(self) -> str:
         try:
@@ -746,6 +748,10 @@ def _add_websocket(app: FastAPI, ctx: WebContext) -> None:
             await websocket.close(code=1008)
             return
         await websocket.accept()
+        if ctx.live_clients >= MAX_LIVE_CLIENTS:
+            await websocket.close(code=1013, reason="too many live clients")  # try again later
+            return
+        ctx.live_clients += 1
         q = websocket.query_params
         want_fieldbus = q.get("fieldbus") == "1"
         log_after = _int(q.get("log"), ctx.log_feed.seq)
@@ -769,6 +775,7 @@ def _add_websocket(app: FastAPI, ctx: WebContext) -> None:
         except Exception:  # the client went away mid-send: nothing to clean up but the task
             pass
         finally:
+            ctx.live_clients -= 1
             closed.cancel()
             with contextlib.suppress(Exception):
                 await websocket.close()
