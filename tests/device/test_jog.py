@@ -86,3 +86,14 @@ def test_real_clock_homing_completes() -> None:
         time.sleep(max(0.0, nd - time.monotonic()))
         g.poll()
     assert g.snapshot().width == 0.0
+
+
+def test_jog_speed_change_in_same_direction_takes_effect(homed: Rig) -> None:
+    homed.g.jog(-1, 10.0, 20.0)
+    homed.clock.advance(1.0)
+    assert homed.g.speed() == pytest.approx(-10.0)
+    homed.g.jog(-1, 30.0, 20.0)
+    homed.clock.advance(1.0)
+    assert homed.g.speed() == pytest.approx(-30.0)
+    homed.g.jog(-1, 30.0, 20.0)  # same level again: the ramp is not restarted
+    assert homed.g.speed() == pytest.approx(-30.0)

@@ -1016,11 +1016,16 @@ class VirtualGripper:
         denied = self._motion_denied(now, replaces=("jog",))
         if denied is not None:
             return denied
-        if m is not None and m.kind == "jog" and m.direction == direction:
-            return S.E_SUCCESS
         d = 1 if direction > 0 else -1
         v = self.profile.clamp_speed(speed if speed > 0 else self.profile.min_speed)
         f = min(max(force, self.profile.min_force), self._max_force())
+        if m is not None and m.kind == "jog" and m.direction == d and m.speed == v and m.force == f:
+            return S.E_SUCCESS  # level still held: nothing changes
+        c = self._contact
+        if m is None and c is not None and c.kind == "press" and c.direction == d:
+            c.force = f  # still pressing against the same obstacle
+            self._changed()
+            return S.E_SUCCESS
         self.gstate = GS.POSITIONING
         target = self.profile.stroke if d > 0 else 0.0
         self._start(now, Motion("jog", None, None, target, v, d, force=f),
