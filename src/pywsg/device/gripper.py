@@ -86,6 +86,8 @@ _SF_TARGET_POS_REACHED = int(SystemFlag.SF_TARGET_POS_REACHED)
 _SF_TEMP_FAULT = int(SystemFlag.SF_TEMP_FAULT)
 _SF_TEMP_WARNING = int(SystemFlag.SF_TEMP_WARNING)
 
+_AUTO_UPDATE = int(AutoUpdateFlag.AUTO_UPDATE)
+_CHANGE_ONLY = int(AutoUpdateFlag.CHANGE_ONLY)
 SOFT_EPS = 1e-6  # mm: a soft limit is violated only strictly beyond it
 POS_EPS = 1e-6
 SPEED_EPS = 1e-6
@@ -552,11 +554,11 @@ class VirtualGripper:
     def _auto_update(self, s: Session, payload: bytes, now: float, cid: int) -> Frame:
         flags, period_ms = _AUTO.unpack(payload)
         value = self._value_for(cid, now)
-        if flags & AutoUpdateFlag.AUTO_UPDATE:
+        if flags & _AUTO_UPDATE:
             if period_ms < MIN_PERIOD_MS:
                 return Frame.reply(cid, S.E_INVALID_PARAMETER)
             period = period_ms / 1000.0
-            s.subscriptions[cid] = Subscription(cid, period, bool(flags & AutoUpdateFlag.CHANGE_ONLY),
+            s.subscriptions[cid] = Subscription(cid, period, bool(flags & _CHANGE_ONLY),
                                                 now + period, value, self._version)
             self._due_valid = False
         elif s.subscriptions:
