@@ -837,10 +837,12 @@ class VirtualGripper:
                 self.gstate = GS.PART_LOST
                 self.stats[2] += 1
                 self.log.add(now, LogLevel.WARNING, f"part lost at {x:.2f} mm")
-                end = x + c.direction * self.settings.clamping_travel
+                # the fingers run on to the end of the grip's clamping travel (or one travel further)
+                travel = self.settings.clamping_travel
+                end = c.nominal + c.direction * travel
+                if (end - x) * c.direction <= 0:
+                    end = x + c.direction * travel
                 end = min(max(end, 0.0), self.profile.stroke)
-                lost_end = c.nominal + c.direction * self.settings.clamping_travel
-                end = min(max(lost_end, 0.0), self.profile.stroke) if (lost_end - x) * c.direction > 0 else end
                 self._motion = Motion("lost", None, None, end, self.profile.max_speed / 4, c.direction)
                 self._traj = plan_move(now, x, end, self._motion.speed, self.acceleration)
             elif c.kind == "clamp":

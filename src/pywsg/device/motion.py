@@ -145,7 +145,7 @@ def plan_move(t0: float, x0: float, target: float, vmax: float, acc: float, v0: 
     d = target - x
     dist = abs(d)
     if dist < 1e-12 or vmax <= 0 or acc <= 0:
-        return Trajectory(phases, t0, x0) if phases else Trajectory.rest(t0, x0 if not phases else x)
+        return Trajectory(phases, t0, x0) if phases else Trajectory.rest(t0, x0)
     s = 1.0 if d > 0 else -1.0
     if dist <= vmax * vmax / acc:  # triangle: never reaches vmax
         tp = math.sqrt(dist / acc)
