@@ -245,6 +245,17 @@ class WebContext:
     settings_path: Path | None = None
     closing: asyncio.Event = dataclasses.field(default_factory=asyncio.Event)
     live_clients: int = 0
+    _cache: dict[str, tuple[float, Any]] = dataclasses.field(default_factory=dict)
+
+    def cached(self, key: str, make: Callable[[], Any], max_age: float = UPDATE_PERIOD_S / 2) -> Any:
+        """One computation per update period shared by all live clients (32 clients, one snapshot)."""
+        now = time.monotonic()
+        hit = self._cache.get(key)
+        if hit is not None and now - hit[0] < max_age:
+            return hit[1]
+        value = make()
+        self._cache[key] = (now, value)
+        return value
 
     def model_name(self) -> str:
         try:
@@ -759,7 +770,7 @@ def _add_websocket(app: FastAPI, ctx: WebContext) -> None:
         closed = asyncio.create_task(_wait_closed(websocket))
         try:
             while not ctx.closing.is_set() and not closed.done():
-                msg: dict[str, Any] = {"type": "update", "t": time.time(), "state": ctx.state()}
+                msg: dict[str, Any] = {"type": "update", "t": time.time(), "state": ctx.cached("state", ctx.state)}
                 entries = ctx.log_feed.after(log_after)
                 if entries:
                     msg["log"] = entries
@@ -769,7 +780,7 @@ def _add_websocket(app: FastAPI, ctx: WebContext) -> None:
                     msg["results"] = results
                     results_after = results[-1]["seq"]
                 if want_fieldbus:
-                    msg["fieldbus"] = fieldbus_view(ctx.fieldbus)
+                    msg["fieldbus"] = ctx.cached("fieldbus", lambda: fieldbus_view(ctx.fieldbus))
                 await websocket.send_text(json.dumps(msg, allow_nan=False))
                 await asyncio.wait([closed], timeout=UPDATE_PERIOD_S)
         except Exception:  # the client went away mid-send: nothing to clean up but the task
