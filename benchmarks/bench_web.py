@@ -13,7 +13,6 @@ import asyncio
 import json
 import threading
 import time
-from typing import Any
 
 import httpx
 import websockets
