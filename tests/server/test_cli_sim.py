@@ -111,6 +111,10 @@ def test_wsg_sim_modbus_and_web_interfaces() -> None:
     try:
         assert lines[1] == f"gripper 0: Modbus   modbus-tcp://127.0.0.1:{base + 1}"
         assert lines[2] == f"gripper 0: web      http://127.0.0.1:{base + 2}/"
+        c = TcpClient(base)  # default loop: uvloop when installed
+        assert c.request(0x06, b"uv").params == b"uv"
+        c.request(0x07)
+        c.close()
         from pymodbus.client import ModbusTcpClient
 
         mb = ModbusTcpClient("127.0.0.1", port=base + 1)

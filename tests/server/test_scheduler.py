@@ -85,6 +85,13 @@ async def test_manual_clock_runs_a_motion_without_waiting() -> None:
         sg.runner.poll_now()
         assert len(inbox) == 4 * 10 or len(inbox) == 4  # catch-up without bursts is the device's call
         assert all(f.status == Status.E_SUCCESS for f in inbox)
+        # a gripper on a manual clock is never put on the real-time timer (no spinning on it)
+        sched = sim.scheduler
+        assert sched is not None
+        rounds = sched.rounds
+        sg.runner.wake()
+        await asyncio.sleep(0.05)
+        assert sched.rounds == rounds and sched.pending == 0
 
 
 @pytest.mark.realtime

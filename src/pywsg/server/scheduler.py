@@ -11,7 +11,7 @@ milliseconds and then often sleeps a second millisecond when it woke a hair earl
 ``asyncio.sleep`` is ~1.2 ms late (p99 ~2.2 ms). The scheduler therefore arms its timer ``early``
 seconds before the due time and sleeps the rest with :func:`time.sleep` (nanosecond timer, no CPU),
 which puts the wakeup within ~0.1–0.7 ms of the due time. The blocking part is at most ``early`` plus
-the loop's lateness, and it is taken only for real-time clocks. Events due within one such wakeup are
+the loop's lateness. Only grippers on a real-time clock are put on the timer. Events due within one such wakeup are
 served together, and frames for one connection are written in one ``write`` after the round.
 """
 
@@ -39,10 +39,13 @@ class Flushable(Protocol):
     def flush(self) -> None: ...
 
 
-def default_early() -> float:
+def _is_uvloop(loop: asyncio.AbstractEventLoop) -> bool:
+    return type(loop).__module__.startswith("uvloop")
+
+
+def default_early(loop: asyncio.AbstractEventLoop | None = None) -> float:
     """Seconds to wake before a due time: covers the loop's own lateness (see module docstring)."""
-    loop = asyncio.get_running_loop()
-    if type(loop).__module__.startswith("uvloop"):
+    if _is_uvloop(loop or asyncio.get_running_loop()):
         return 0.0012  # libuv timers have whole-millisecond resolution
     return 0.0016
 
@@ -55,7 +58,10 @@ class Scheduler:
 
     def __init__(self, loop: asyncio.AbstractEventLoop | None = None, early: float | None = None) -> None:
         self.loop = loop or asyncio.get_running_loop()
-        self.early = default_early() if early is None else early
+        self.early = default_early(self.loop) if early is None else early
+        # libuv measures timers from a loop time cached at the start of an iteration, so a uvloop
+        # timer may fire up to ~1 ms before its time: accept that much more before re-arming
+        self.slack = 0.0015 if _is_uvloop(self.loop) else 0.0002
         self._heap: list[tuple[float, int, DeviceRunner]] = []
         self._seq = itertools.count()
         self._handle: asyncio.TimerHandle | None = None
@@ -133,7 +139,7 @@ class Scheduler:
                 wait = when - now
                 if wait > 0:
                     # close enough to sleep precisely here; else leave it to the next timer
-                    if wait > self.early or now - start > MAX_ROUND or not runner.realtime:
+                    if wait > self.early + self.slack or now - start > MAX_ROUND:
                         break
                     time.sleep(wait)
                 heapq.heappop(heap)
@@ -171,21 +177,38 @@ def _clock_of(gripper: GripperLike) -> Callable[[], float]:
     return clock if callable(clock) else time.monotonic
 
 
+def is_realtime(clock: Callable[[], float]) -> bool:
+    """True for clocks that follow :func:`time.monotonic` (False for ``ManualClock`` and the like)."""
+    if clock is time.monotonic or getattr(clock, "realtime", False):
+        return True
+    try:
+        from ..device.clock import ManualClock, monotonic_clock
+    except ImportError:  # pragma: no cover - the device package is part of pywsg
+        ManualClock, monotonic_clock = None, None  # type: ignore[assignment,misc]
+    if clock is monotonic_clock:
+        return True
+    if ManualClock is not None and isinstance(clock, ManualClock):
+        return False
+    return abs(clock() - time.monotonic()) < 0.01
+
+
 class DeviceRunner:
     """Serves one gripper's due events on time.
 
     ``start()`` registers the gripper's wakeup listener and queues its first due time; after each
     ``poll()`` the next due time is queued again. Frames reach the clients through the sessions'
-    ``deliver`` callbacks, which the transports set. With an injected (manual) clock the runner
-    maps device seconds to real seconds; tests advancing a :class:`~pywsg.device.ManualClock` call
-    :meth:`poll_now` (or :meth:`wake`) to serve what became due.
+    ``deliver`` callbacks, which the transports set. A gripper on an injected clock that does not
+    follow real time (:class:`~pywsg.device.ManualClock`) is never put on the timer: tests advance
+    the clock and call :meth:`poll_now` to serve what became due.
     """
 
-    def __init__(self, gripper: GripperLike, scheduler: Scheduler | None = None) -> None:
+    def __init__(
+        self, gripper: GripperLike, scheduler: Scheduler | None = None, realtime: bool | None = None
+    ) -> None:
         self.gripper = gripper
         self.scheduler = scheduler
         self.clock = _clock_of(gripper)
-        self.realtime = self.clock is time.monotonic
+        self.realtime = is_realtime(self.clock) if realtime is None else realtime
         self.polls = 0
         self._entry: int | None = None
         self._entry_when = float("inf")
@@ -208,7 +231,7 @@ class DeviceRunner:
 
     def wake(self) -> None:
         """The gripper's next due time may have moved earlier: re-queue if so."""
-        if not self._started or self._running or self.scheduler is None:
+        if not self._started or self._running or self.scheduler is None or not self.realtime:
             return
         due = self.gripper.next_due()
         if due is None:
@@ -218,10 +241,9 @@ class DeviceRunner:
             self.scheduler.schedule(self, when)
 
     def _to_monotonic(self, due: float) -> float:
-        now = time.monotonic()
-        if self.realtime:
+        if self.clock is time.monotonic:
             return due
-        return now + max(due - self.clock(), 0.0)
+        return time.monotonic() + (due - self.clock())  # same rate, maybe another origin
 
     def run(self) -> None:
         """Poll the gripper (sessions' deliver callbacks get the frames) and queue the next due time."""
@@ -231,7 +253,7 @@ class DeviceRunner:
             self.polls += 1
         finally:
             self._running = False
-        if not self._started or self.scheduler is None:
+        if not self._started or self.scheduler is None or not self.realtime:
             return
         due = self.gripper.next_due()
         if due is None:

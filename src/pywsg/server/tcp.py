@@ -17,7 +17,7 @@ import asyncio
 import logging
 import socket
 import time
-from typing import Any
+from typing import Any, cast
 
 from ..protocol import Frame
 from .device_api import GripperLike
@@ -64,7 +64,7 @@ class TcpConnection(asyncio.Protocol):
 
     # -- asyncio.Protocol ------------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        assert isinstance(transport, asyncio.Transport)
+        transport = cast(asyncio.Transport, transport)  # uvloop's is no asyncio.Transport subclass
         self.transport = transport
         srv = self.server
         peer = transport.get_extra_info("peername")

@@ -1,0 +1,300 @@
+"""Transport benchmark: `wsg sim` against a bare asyncio server doing the same I/O, same run.
+
+1. Round trips of a 41h Get Gripper State request (11-byte frame each way) from a blocking raw-socket
+   client, over TCP and UDP: round trips/s, p50/p99 latency, and the ratio to a bare asyncio echo
+   server answering with a reply of the same size.
+2. Auto-update timing: N virtual grippers x 4 streams at 10 ms (40h, 41h, 43h, 44h) in one `wsg sim`
+   process, one TCP connection per gripper, received by a separate process: interval error
+   |gap - 10 ms| per stream (p50/p99/max) and the server's CPU, beside a bare asyncio server writing
+   the same frames on the same number of connections with one `asyncio.sleep` loop per stream.
+
+Servers run in their own processes (the client does not share their GIL). Both are run on stock
+asyncio and, when installed, on uvloop.
+
+    .venv/bin/python benchmarks/bench_transport.py [--counts 1,50,200] [--seconds 3] [--loops asyncio,uvloop]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import selectors
+import socket
+import statistics
+import subprocess
+import sys
+import textwrap
+import time
+
+import psutil
+
+from pywsg.protocol import CATALOG, Frame
+
+REQ = Frame(0x41, CATALOG[0x41].encode_request(flags=0, period_ms=0)).encode()
+REPLY = Frame.reply(0x41, 0, b"\x00").encode()
+assert len(REQ) == len(REPLY) == 11
+STREAMS = (0x40, 0x41, 0x43, 0x44)
+PY = sys.executable
+
+BARE = textwrap.dedent(
+    """
+    import asyncio, sys
+    mode, port, use_uv = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "uvloop"
+    REPLY = bytes.fromhex(sys.argv[4])
+    FRAMES = [bytes.fromhex(h) for h in sys.argv[5].split(",")]
+
+    class Echo(asyncio.Protocol):
+        def connection_made(self, t):
+            self.t = t
+            if mode == "stream":
+                loop = asyncio.get_running_loop()
+                self.tasks = [loop.create_task(self.stream(f)) for f in FRAMES]
+        def data_received(self, data):
+            if mode == "echo":
+                self.t.write(REPLY * (len(data) // 11))
+        async def stream(self, frame):  # one sleep per stream, on a 10 ms grid
+            loop = asyncio.get_running_loop()
+            nxt = loop.time()
+            while not self.t.is_closing():
+                nxt += 0.010
+                await asyncio.sleep(nxt - loop.time())
+                self.t.write(frame)
+        def connection_lost(self, exc):
+            for t in getattr(self, "tasks", []):
+                t.cancel()
+
+    class UdpEcho(asyncio.DatagramProtocol):
+        def connection_made(self, t):
+            self.t = t
+        def datagram_received(self, data, addr):
+            self.t.sendto(REPLY, addr)
+
+    async def main():
+        loop = asyncio.get_running_loop()
+        await loop.create_server(Echo, "127.0.0.1", port)
+        if mode == "echo":
+            await loop.create_datagram_endpoint(UdpEcho, local_addr=("127.0.0.1", port + 1))
+        print("ready", flush=True)
+        await asyncio.Event().wait()
+
+    if use_uv:
+        import uvloop
+        uvloop.run(main())
+    else:
+        asyncio.run(main())
+    """
+)
+
+
+def free_base(n: int) -> int:
+    import random
+
+    for _ in range(500):
+        base = random.randint(20000, 50000)
+        socks = []
+        try:
+            for i in range(n):
+                for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
+                    s = socket.socket(socket.AF_INET, kind)
+                    socks.append(s)
+                    s.bind(("127.0.0.1", base + i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no free port range")
+
+
+def start(cmd: list[str], ready: str) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None
+    while True:
+        line = proc.stdout.readline()
+        if not line:
+            raise RuntimeError(f"server did not start: {cmd}")
+        if ready in line:
+            return proc
+
+
+def stop(proc: subprocess.Popen[str]) -> None:
+    proc.terminate()
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+def sim_cmd(loop: str, base: int, count: int, udp: bool) -> list[str]:
+    return [
+        PY, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(base),
+        "--udp-port", str(base + count) if udp else "0", "--udp-reply-port", "0", "--serial", "off",
+        "--web-port", "0", "--count", str(count), "--uvloop" if loop == "uvloop" else "--no-uvloop",
+    ]
+
+
+def bare_cmd(loop: str, mode: str, port: int) -> list[str]:
+    frames = ",".join(Frame.reply(c, 0, b"\x00" * (1 if c == 0x41 else 4)).encode().hex() for c in STREAMS)
+    return [PY, "-c", BARE, mode, str(port), loop, REPLY.hex(), frames]
+
+
+# -- 1. round trips -----------------------------------------------------------------------
+
+
+def round_trips(port: int, udp: bool, n: int) -> tuple[float, float, float]:
+    """(round trips/s, p50 µs, p99 µs) of n blocking 41h round trips."""
+    if udp:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.bind(("127.0.0.1", 0))
+        s.connect(("127.0.0.1", port))
+    else:
+        s = socket.create_connection(("127.0.0.1", port))
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    s.settimeout(5)
+    lat = []
+    clock = time.perf_counter_ns
+    for i in range(n + 500):
+        t0 = clock()
+        s.send(REQ)
+        got = s.recv(64)
+        while len(got) < 11:
+            got += s.recv(64)
+        if i >= 500:
+            lat.append(clock() - t0)
+    if not udp:
+        s.send(Frame(0x07).encode())
+    s.close()
+    lat.sort()
+    total = sum(lat) / 1e9
+    return n / total, lat[len(lat) // 2] / 1e3, lat[int(len(lat) * 0.99)] / 1e3
+
+
+def bench_round_trips(loop: str, n: int) -> None:
+    base = free_base(4)
+    sim = start(sim_cmd(loop, base, 1, udp=True), "UDP")
+    bare = start(bare_cmd(loop, "echo", base + 2), "ready")
+    try:
+        for name, udp in (("TCP", False), ("UDP", True)):
+            rs, p50s, p99s = round_trips(base + (1 if udp else 0), udp, n)
+            rb, p50b, p99b = round_trips(base + 2 + (1 if udp else 0), udp, n)
+            print(
+                f"  {loop:8s} {name}: wsg sim {rs:8.0f}/s p50 {p50s:6.1f} µs p99 {p99s:6.1f} µs | "
+                f"bare echo {rb:8.0f}/s p50 {p50b:6.1f} µs p99 {p99b:6.1f} µs | "
+                f"ratio (bare/sim throughput) {rb / rs:4.2f}x, p50 {p50s / p50b:4.2f}x"
+            )
+    finally:
+        stop(sim)
+        stop(bare)
+
+
+# -- 2. auto-update timing ------------------------------------------------------------------
+
+
+def receive_streams(socks: list[socket.socket], seconds: float, warmup: float) -> list[float]:
+    """Interval errors (ms) of every stream on every socket, after ``warmup`` seconds."""
+    sel = selectors.DefaultSelector()
+    bufs: dict[int, bytearray] = {}
+    last: dict[tuple[int, int], float] = {}
+    errors: list[float] = []
+    for s in socks:
+        s.setblocking(False)
+        sel.register(s, selectors.EVENT_READ)
+        bufs[s.fileno()] = bytearray()
+    t_start = time.monotonic()
+    t_measure = t_start + warmup
+    t_end = t_measure + seconds
+    while True:
+        now = time.monotonic()
+        if now >= t_end:
+            break
+        for key, _ in sel.select(t_end - now):
+            sock: socket.socket = key.fileobj  # type: ignore[assignment]
+            stamp = time.monotonic()
+            fd = sock.fileno()
+            buf = bufs[fd]
+            buf += sock.recv(1 << 16)
+            pos, n = 0, len(buf)
+            while n - pos >= 8:
+                size = buf[pos + 4] | (buf[pos + 5] << 8)
+                end = pos + size + 8
+                if end > n:
+                    break
+                k = (fd, buf[pos + 3])
+                prev = last.get(k)
+                if prev is not None and stamp >= t_measure:
+                    errors.append(abs(stamp - prev - 0.010) * 1000)
+                last[k] = stamp
+                pos = end
+            del buf[:pos]
+    sel.close()
+    return errors
+
+
+def subscribe(s: socket.socket) -> None:
+    for cid in STREAMS:
+        s.sendall(Frame(cid, CATALOG[cid].encode_request(flags=1, period_ms=10)).encode())
+
+
+def stats(errors: list[float]) -> str:
+    if not errors:
+        return "no packets"
+    e = sorted(errors)
+    return f"p50 {e[len(e) // 2]:5.2f} p99 {e[int(len(e) * 0.99)]:6.2f} max {e[-1]:6.1f} ms"
+
+
+def bench_timing(loop: str, count: int, seconds: float) -> None:
+    warmup = 0.5
+    base = free_base(count + 1)
+    results = {}
+    for name in ("wsg sim", "bare"):
+        if name == "wsg sim":
+            proc = start(sim_cmd(loop, base, count, udp=False), f"gripper {count - 1}: TCP")
+            socks = [socket.create_connection(("127.0.0.1", base + i)) for i in range(count)]
+            for s in socks:
+                subscribe(s)
+        else:
+            proc = start(bare_cmd(loop, "stream", base), "ready")
+            socks = [socket.create_connection(("127.0.0.1", base)) for _ in range(count)]
+        ps = psutil.Process(proc.pid)
+        time.sleep(0.05)
+        cpu0 = sum(ps.cpu_times()[:2])
+        t0 = time.monotonic()
+        errors = receive_streams(socks, seconds, warmup)
+        cpu = (sum(ps.cpu_times()[:2]) - cpu0) / (time.monotonic() - t0) * 100
+        for s in socks:
+            s.close()
+        stop(proc)
+        rate = len(errors) / seconds
+        results[name] = (stats(errors), cpu, rate)
+    for name, (st, cpu, rate) in results.items():
+        print(f"  {loop:8s} {count:4d} x 4 streams  {name:8s} {st}  CPU {cpu:5.1f} %  {rate:8.0f} packets/s")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--counts", default="1,50,200", help="gripper counts for the timing test")
+    ap.add_argument("--seconds", type=float, default=3.0, help="measuring time per timing run")
+    ap.add_argument("--round-trips", type=int, default=20000)
+    loops = ["asyncio"]
+    try:
+        import uvloop  # noqa: F401
+
+        loops.append("uvloop")
+    except ImportError:
+        pass
+    ap.add_argument("--loops", default=",".join(loops))
+    args = ap.parse_args()
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start, Python {sys.version.split()[0]}")
+    print("1. round trips of a 41h request (blocking raw-socket client)")
+    for loop in args.loops.split(","):
+        bench_round_trips(loop, args.round_trips)
+    print("2. auto-update interval error seen by a receiving client (10 ms period)")
+    for loop in args.loops.split(","):
+        for count in (int(c) for c in args.counts.split(",")):
+            bench_timing(loop, count, args.seconds)
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
+if __name__ == "__main__":
+    main()
