@@ -20,7 +20,6 @@ import argparse
 import os
 import selectors
 import socket
-import statistics
 import subprocess
 import sys
 import textwrap
@@ -285,7 +284,8 @@ def main() -> None:
         pass
     ap.add_argument("--loops", default=",".join(loops))
     args = ap.parse_args()
-    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start, Python {sys.version.split()[0]}")
+    load = os.getloadavg()[0]
+    print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start, Python {sys.version.split()[0]}")
     print("1. round trips of a 41h request (blocking raw-socket client)")
     for loop in args.loops.split(","):
         bench_round_trips(loop, args.round_trips)
