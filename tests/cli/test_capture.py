@@ -14,10 +14,11 @@ from pathlib import Path
 
 import dpkt
 import pytest
-from conftest import run_wsg
 
 from pywsg.cli.capture import bytes_from_file, frames_from_capture, read_hexdump
 from pywsg.protocol import Frame, Status
+
+from .conftest import run_wsg
 
 CLIENT, SERVER = ("127.0.0.1", 40000), ("127.0.0.1", 1000)
 REQ = Frame(0x21, bytes.fromhex("00 00004842 0000c842")).encode()  # pre-position 50 mm, 100 mm/s

@@ -6,7 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import Sim, free_port, run_wsg
+
+from .conftest import Sim, free_port, run_wsg
 
 
 def test_info_state_limits_temp(sim: Sim) -> None:

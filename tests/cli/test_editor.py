@@ -5,9 +5,10 @@ from __future__ import annotations
 import struct
 
 import pytest
-from conftest import run_wsg
 
 from pywsg.cli.editor import PayloadSyntaxError, build_packet, parse_command_id, parse_payload, tokenize
+
+from .conftest import run_wsg
 
 # The manual's examples (1.2.1, 1.2.2 and chapter 2), as `wsg send` arguments -> wire bytes.
 MANUAL = [

@@ -13,7 +13,8 @@ import termios
 import time
 
 import pytest
-from conftest import WSG, Sim, run_wsg
+
+from .conftest import WSG, Sim, run_wsg
 
 ANSI = re.compile(rb"\x1b\[[0-9;?]*[A-Za-z]|\x1b[()][AB0]")
 

@@ -11,7 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import Sim, run_wsg
+
+from .conftest import Sim, run_wsg
 
 
 def _rx(out: str) -> list[str]:

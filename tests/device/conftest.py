@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from devrig import Rig, make_rig
+
+from .devrig import Rig, make_rig
 
 
 @pytest.fixture

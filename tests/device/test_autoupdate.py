@@ -5,9 +5,9 @@ from __future__ import annotations
 import itertools
 import struct
 
-from devrig import Rig
-
 from pywsg.protocol import Frame, GripperState, Status
+
+from .devrig import Rig
 
 
 def test_always_mode_sends_every_period(homed: Rig) -> None:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from devrig import Rig
-
 from pywsg.protocol import GripperState, Status, SystemFlag
+
+from .devrig import Rig
 
 
 def test_homing_references_and_answers_pending_then_success(rig: Rig) -> None:

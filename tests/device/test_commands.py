@@ -6,10 +6,11 @@ import math
 import struct
 
 import pytest
-from devrig import Rig, make_rig
 
 from pywsg.device import Settings, encode_fw_version
 from pywsg.protocol import CATALOG, DeviceType, Frame, GripperState, Status, SystemFlag
+
+from .devrig import Rig, make_rig
 
 S = Status
 SF = SystemFlag

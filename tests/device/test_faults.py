@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import pytest
-from devrig import Rig
 
 from pywsg.device.thermal import FAULT_C, WARNING_C
 from pywsg.protocol import FingerFlag, GripperState, Status, SystemFlag
+
+from .devrig import Rig
 
 S = Status
 SF = SystemFlag

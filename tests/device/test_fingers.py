@@ -5,11 +5,12 @@ from __future__ import annotations
 import struct
 
 import pytest
-from devrig import Rig, make_rig
 
 from pywsg.device import Settings
 from pywsg.device.fingers import DSA_COLS, DSA_ROWS
 from pywsg.protocol import FingerFlag, FingerType, Status
+
+from .devrig import Rig, make_rig
 
 S = Status
 

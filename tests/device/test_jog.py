@@ -6,10 +6,11 @@ import struct
 import time
 
 import pytest
-from devrig import Rig
 
 from pywsg.device import LogEntry, VirtualGripper
 from pywsg.protocol import Frame, GripperState, Status, SystemFlag
+
+from .devrig import Rig
 
 S = Status
 

@@ -6,11 +6,12 @@ import math
 import struct
 
 import pytest
-from devrig import Rig
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pywsg.device.motion import plan_move, plan_stop, plan_velocity
+
+from .devrig import Rig
 
 
 def trapezoid(t: float, x0: float, x1: float, v: float, a: float) -> tuple[float, float]:

@@ -6,10 +6,11 @@ import math
 import struct
 
 import pytest
-from devrig import Rig, make_rig
 
 from pywsg.device import FirmwarePlugin, Settings, VirtualGripper
 from pywsg.protocol import Frame, Status, SystemFlag
+
+from .devrig import Rig, make_rig
 
 S = Status
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import struct
 
-from devrig import Rig, make_rig
-
 from pywsg.protocol import CATALOG, Frame, FrameParser, GripperState, Status, SystemFlag, encode_frame
+
+from .devrig import Rig, make_rig
 
 S = Status
 G = GripperState

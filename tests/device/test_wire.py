@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import struct
 
-from devrig import Rig, make_rig
-
 from pywsg.device import Settings
 from pywsg.protocol import Frame, FrameParser, Status, SystemFlag, encode_frame
+
+from .devrig import Rig, make_rig
 
 S = Status
 

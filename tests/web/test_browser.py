@@ -6,6 +6,7 @@ copied to docs/img/ for the README.
 
 from __future__ import annotations
 
+import os
 import shutil
 import socket
 import struct
@@ -33,7 +34,8 @@ PAGES = {
 def shot(page: Any, name: str, doc: str | None = None) -> None:
     path = ARTIFACTS / f"{name}.png"
     page.screenshot(path=str(path), full_page=True)
-    if doc is not None:
+    if doc is not None and os.environ.get("PYWSG_UPDATE_DOC_IMAGES"):
+        # refresh the README's screenshots only on request: a test run leaves the tree clean
         DOC_IMAGES.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, DOC_IMAGES / doc)
 
