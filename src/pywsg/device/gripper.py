@@ -172,6 +172,19 @@ class Snapshot:
     plugins: tuple[str, ...] = field(default_factory=tuple)
 
 
+def _max_request(command_id: int) -> int:
+    spec = CATALOG.get(command_id)
+    if spec is None:
+        return MAX_PAYLOAD
+    size = spec.max_request_size
+    # let a stray payload to a no-parameter command through, to answer E_NO_PARAM_EXPECTED
+    return size if size else 64
+
+
+# the parser asks for every frame: one table lookup instead of a catalog walk
+_MAX_REQUEST: tuple[int, ...] = tuple(_max_request(i) for i in range(256))
+
+
 class VirtualGripper:
     """A WSG that answers every command of the command manual like the real one.
 
@@ -321,12 +334,7 @@ class VirtualGripper:
     # ------------------------------------------------------------------ byte / frame entry points
 
     def _max_payload(self, command_id: int) -> int:
-        spec = CATALOG.get(command_id)
-        if spec is None:
-            return MAX_PAYLOAD
-        size = spec.max_request_size
-        # let a stray payload to a no-parameter command through, to answer E_NO_PARAM_EXPECTED
-        return size if size else 64
+        return _MAX_REQUEST[command_id]
 
     def feed(self, s: Session, data: bytes) -> list[Frame]:
         """Stream bytes from a client; returns the immediate replies in order."""

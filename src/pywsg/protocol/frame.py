@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import struct
 from dataclasses import dataclass
 
@@ -16,14 +17,26 @@ _HEADER = struct.Struct("<3sBH")
 _STATUS = struct.Struct("<H")
 
 
-def encode_frame(command_id: int, payload: bytes = b"") -> bytes:
-    """Whole frame bytes for ``command_id`` and ``payload``, checksum included."""
+def _encode(command_id: int, payload: bytes) -> bytes:
     if not 0 <= command_id <= 0xFF:
         raise ValueError(f"command ID {command_id} is not a byte")
     if len(payload) > 0xFFFF:
         raise ValueError(f"payload of {len(payload)} bytes does not fit the 16-bit SIZE field")
     body = _HEADER.pack(PREAMBLE, command_id, len(payload)) + payload
     return body + struct.pack("<H", crc16(body))
+
+
+# Replies repeat (a state read answers the same bytes until the state changes): short frames are
+# encoded once. Bounded, so streams of changing values cannot grow it.
+_encode_cached = functools.lru_cache(maxsize=4096)(_encode)
+_CACHED_PAYLOAD = 32
+
+
+def encode_frame(command_id: int, payload: bytes = b"") -> bytes:
+    """Whole frame bytes for ``command_id`` and ``payload``, checksum included."""
+    if len(payload) <= _CACHED_PAYLOAD and type(payload) is bytes:
+        return _encode_cached(command_id, payload)
+    return _encode(command_id, bytes(payload))
 
 
 @dataclass(frozen=True, slots=True)

@@ -101,6 +101,23 @@ Event = Frame | ParseError
 _SIZE = struct.Struct("<BH")
 
 
+def whole_frame(data: bytes | bytearray | memoryview, verify_checksum: bool, max_payload: MaxPayload) -> Frame | None:
+    """``data`` as one valid frame, or None if it is anything else (then parse it the long way).
+
+    The fast path for a socket read or a datagram holding exactly one frame: the CRC over a whole
+    frame, checksum included, is 0.
+    """
+    n = len(data)
+    if n < OVERHEAD or data[0] != 0xAA or data[1] != 0xAA or data[2] != 0xAA:
+        return None
+    command_id = data[3]
+    size = data[4] | (data[5] << 8)
+    if (n == size + OVERHEAD and command_id != 0xAA and size <= max_payload(command_id)
+            and (not verify_checksum or crc16(data) == 0)):
+        return Frame(command_id, bytes(data[HEADER_SIZE:-2]))
+    return None
+
+
 class FrameParser:
     """Stream parser. ``feed(data)`` returns the frames and error events ``data`` completed.
 
@@ -131,6 +148,11 @@ class FrameParser:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         buf = self._buf
+        if not buf:
+            # the common case on a socket: nothing buffered and ``data`` is exactly one frame
+            whole = whole_frame(data, self.verify_checksum, self.max_payload)
+            if whole is not None:
+                return [whole]
         buf += data
         events: list[Event] = []
         pos = 0
@@ -165,7 +187,7 @@ class FrameParser:
             end = pos + size + OVERHEAD
             if end > n:
                 break
-            if self.verify_checksum:
+            if self.verify_checksum and crc16(memoryview(buf)[pos:end]) != 0:
                 expected = crc16(memoryview(buf)[pos : end - 2])
                 received = buf[end - 2] | (buf[end - 1] << 8)
                 if expected != received:
@@ -191,6 +213,9 @@ def parse_datagram(
     data: bytes, verify_checksum: bool = True, max_payload: MaxPayload | None = None
 ) -> list[Event]:
     """Parse one datagram (UDP: one frame per datagram). Leftovers are reported, never kept."""
+    whole = whole_frame(data, verify_checksum, max_payload or _default_max)
+    if whole is not None:
+        return [whole]
     parser = FrameParser(verify_checksum, max_payload)
     events = parser.feed(data)
     rest = parser.pending()
