@@ -98,3 +98,25 @@ def test_jog_speed_change_in_same_direction_takes_effect(homed: Rig) -> None:
     assert homed.g.speed() == pytest.approx(-30.0)
     homed.g.jog(-1, 30.0, 20.0)  # same level again: the ramp is not restarted
     assert homed.g.speed() == pytest.approx(-30.0)
+
+
+def test_reset_gripper_state_for_fieldbus_stop_ack(rig: Rig) -> None:
+    """Fieldbus STOP/ACK: HOLDING (and NO_PART) back to IDLE, the hold force released."""
+    rig.status(0x20, direction=1)
+    rig.run(5)
+    rig.g.faults.place_part(40.0)
+    rig.status(0x25, width=40.0, speed=50.0)
+    rig.run(5)
+    snap = rig.g.snapshot()
+    assert snap.gripper_state == GripperState.HOLDING and snap.force > 0
+    held_at = snap.width
+    rig.g.reset_gripper_state()
+    snap = rig.g.snapshot()
+    assert snap.gripper_state == GripperState.IDLE
+    assert snap.force == 0.0 and abs(snap.width - held_at) < 1e-6
+    rig.g.faults.remove_part()
+    rig.status(0x25, width=40.0, speed=50.0)
+    rig.run(5)
+    assert rig.g.snapshot().gripper_state == GripperState.NO_PART
+    rig.g.reset_gripper_state()
+    assert rig.g.snapshot().gripper_state == GripperState.IDLE

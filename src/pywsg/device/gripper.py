@@ -881,6 +881,22 @@ class VirtualGripper:
         self._changed()
         self._notify()
 
+    def reset_gripper_state(self) -> None:
+        """Fieldbus STOP/ACK (fieldbus manual §5.5): the gripper state goes back to IDLE.
+
+        Unlike 22h Stop, this also leaves HOLDING, NO_PART, PART_LOST and ERROR; a held part's
+        gripping force is released (the fingers stay where they are).
+        """
+        now = self.clock()
+        self._advance(now)
+        if self._motion is None:
+            self._contact = None
+        self.gstate = GS.IDLE
+        self._update_load(now)
+        self._reschedule(now)
+        self._changed()
+        self._notify()
+
     def raise_fast_stop(self, reason: str) -> None:
         """FAST STOP from outside the binary protocol (fieldbus FASTSTOP, parameter change while moving)."""
         now = self.clock()

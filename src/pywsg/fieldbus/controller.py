@@ -54,6 +54,8 @@ class FieldbusDevice(Protocol):
 
     def jog(self, direction: int, speed: float, force: float) -> Status | int: ...
 
+    def reset_gripper_state(self) -> None: ...
+
 
 @dataclass
 class _State:
@@ -256,7 +258,7 @@ class FieldbusController:
         if self._run([(Command.STOP, {})]) and self.gripper.snapshot().gripper_state != GripperState.IDLE:
             # 002 §4.5: STOP/ACK sets the gripper state to IDLE (also from ERROR, HOLDING, NO_PART),
             # which 22h alone does not do when no motion was running.
-            setattr(self.gripper, "gstate", GripperState.IDLE)  # noqa: B010 - device attribute, no setter
+            self.gripper.reset_gripper_state()
 
     def _raise_fast_stop(self, reason: str, status: Status) -> None:
         self._emit(f"FAST STOP: {reason}")
