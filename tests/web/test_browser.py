@@ -170,6 +170,8 @@ def test_inject_a_part_and_grip_it_to_holding(sim: LiveSim, page: Any, api: http
     page.fill("#form-grip input[name=force]", "30")
     page.click("#form-grip button[type=submit]")
     page.wait_for_function("document.querySelector('#g-state').innerText == 'HOLDING'", timeout=8000)
+    # the final reply replaces E_CMD_PENDING beside the form
+    page.wait_for_function("document.querySelector('#form-grip output.result').innerText == 'E_SUCCESS'")
     page.wait_for_timeout(300)  # a little more plot
     assert float(page.inner_text("#g-force").split()[0]) > 0
     shot(page, "control-panel-holding", doc="control-panel.png")
