@@ -113,7 +113,13 @@ def _raw(port: int, pdu: bytes) -> bytes:
         return s.recv(256)[7:]
 
 
-@pytest.mark.parametrize("pdu", [bytes([0x41, 0, 0]), bytes([0x64, 1, 2]), bytes([0x09])])
+@pytest.mark.parametrize("pdu", [
+    bytes([0x41, 0, 0]), bytes([0x64, 1, 2]), bytes([0x09]),
+    # standard codes pymodbus would serve but the WSG map has no use for
+    bytes([0x14, 7, 6, 0, 1, 0, 0, 0, 1]),   # read file record
+    bytes([0x08, 0, 0, 0x12, 0x34]),         # diagnostics: return query data
+    bytes([0x0B]),                           # get comm event counter
+])
 async def test_unsupported_function_code_gets_exception_01(sim: SimServer, pdu: bytes) -> None:
     reply = await asyncio.to_thread(_raw, sim.modbus_port or 0, pdu)
     assert reply == bytes([pdu[0] | 0x80, 0x01])

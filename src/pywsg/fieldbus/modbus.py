@@ -49,6 +49,12 @@ _HR_FCS = {_FC_READ_HR, _FC_WRITE_REG, _FC_WRITE_REGS, _FC_MASK_WRITE, _FC_READ_
 _QUANTITY_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
 
 
+# read coils / discrete inputs / holding / input registers, write single / multiple coils and
+# registers, read/write multiple registers: what the WSG register map is served through
+_SERVED_FCS = frozenset({0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F, 0x10, 0x17})
+_UNDECODABLE_FC = 0x7F
+
+
 def _bad_quantity(pdu: bytes) -> bool:
     """True if a read/write-multiple request's quantity is outside the Modbus limits."""
     limit = _QUANTITY_LIMITS.get(pdu[0]) if pdu else None
@@ -112,14 +118,19 @@ class FieldbusModbusAdapter:
         """
         if not sending:
             pos = 0
+            out = bytearray(data)
             while pos + 8 <= len(data):   # MBAP: tid, protocol, length (unit id + PDU), unit id, FC
                 tid, _, length = struct.unpack_from(">HHH", data, pos)
                 pdu = data[pos + 7:pos + 6 + max(length, 2)]
                 self._last_fc[tid] = (pdu[0], _bad_quantity(pdu))
+                if pdu[0] not in _SERVED_FCS:
+                    # a code pymodbus would serve (diagnostics, event counters, ...) but the WSG's
+                    # register map has no use for: make it undecodable so it is ILLEGAL FUNCTION
+                    out[pos + 7] = _UNDECODABLE_FC
                 for k in list(self._last_fc)[:-64]:
                     del self._last_fc[k]
                 pos += 6 + max(length, 2)
-            return data
+            return bytes(out)
         if len(data) >= 9 and data[7] & 0x80 and data[8] == ExcCodes.ILLEGAL_FUNCTION:
             tid = struct.unpack_from(">H", data)[0]
             fc, bad_quantity = self._last_fc.pop(tid, (data[7] & 0x7F, False))
