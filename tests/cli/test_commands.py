@@ -157,3 +157,12 @@ def test_shell_completion() -> None:
     assert "monitor" in r.out and "move" in r.out
     r = run_wsg(env={"_WSG_COMPLETE": "bash_complete", "COMP_WORDS": "wsg send get-sy", "COMP_CWORD": "2"})
     assert "get-system-state" in r.out and "get-system-info" in r.out
+
+
+def test_group_level_log_and_json_options(sim: Sim) -> None:
+    """`wsg --log --json move 60` works like `wsg move 60 --log --json`."""
+    assert sim.wsg("home").code == 0
+    r = sim.wsg("--log", "--json", "move", "60", "--speed", "400")
+    assert r.code == 0, r
+    assert any(" TX 21h PREPOSITION" in ln for ln in r.err.splitlines())
+    assert abs(r.json()["width"] - 60.0) < 0.01

@@ -70,9 +70,14 @@ class LazyGroup(click.Group):
     "serial:///dev/ttyUSB0?baudrate=115200 (or set WSG_URL).",
 )
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
+@click.option("--log", "log_flag", is_flag=True,
+              help="Communication log on stderr for the command that follows (same as its own --log).")
+@click.option("--log-file", type=click.Path(dir_okay=False, writable=True), metavar="PATH",
+              help="Append the communication log as JSON lines to PATH (same as the command's --log-file).")
+@click.option("--json", "as_json", is_flag=True, help="JSON output for the command that follows.")
 @click.version_option(__version__, prog_name="wsg")
 @click.pass_context
-def cli(ctx: click.Context, url: str, verbose: int) -> None:
+def cli(ctx: click.Context, url: str, verbose: int, log_flag: bool, log_file: str | None, as_json: bool) -> None:
     """Drive, simulate and inspect Weiss Robotics / SCHUNK WSG grippers.
 
     Units everywhere: widths in mm, speeds in mm/s, accelerations in mm/s², forces in N.
@@ -82,6 +87,9 @@ def cli(ctx: click.Context, url: str, verbose: int) -> None:
     ctx.ensure_object(dict)
     ctx.obj["url"] = url
     ctx.obj["verbose"] = verbose
+    ctx.obj["log"] = log_flag
+    ctx.obj["log_file"] = log_file
+    ctx.obj["json"] = as_json
 
 
 def main() -> None:

@@ -160,6 +160,11 @@ def common_options(f: F) -> F:
 
 
 def options(ctx: click.Context, as_json: bool, log_flag: bool, log_file: str | None, timeout: float) -> Options:
+    root = ctx.find_root().obj or {}
+    # `wsg --log move 20` and `wsg move 20 --log` mean the same
+    as_json = as_json or bool(root.get("json"))
+    log_flag = log_flag or bool(root.get("log"))
+    log_file = log_file or root.get("log_file")
     log: CommLog | None = None
     if log_flag or log_file:
         jsonl = None
@@ -167,8 +172,7 @@ def options(ctx: click.Context, as_json: bool, log_flag: bool, log_file: str | N
             jsonl = Path(log_file).open("a", encoding="utf-8")  # noqa: SIM115 - closed at exit
             ctx.call_on_close(jsonl.close)
         log = CommLog(text=sys.stderr if log_flag else None, jsonl=jsonl)
-    obj = ctx.find_root().obj or {}
-    url = obj.get("url") or "tcp://127.0.0.1:1000"
+    url = root.get("url") or "tcp://127.0.0.1:1000"
     return Options(url, as_json, log, timeout)
 
 
