@@ -62,15 +62,28 @@ class ReconnectPolicy:
 
 
 class _AWaiter(Waiter):
-    __slots__ = ("fut",)
+    """A waiter with a future; ``deadline`` (loop time) is watched by the gripper's one timer."""
+
+    __slots__ = ("deadline", "fut", "timeout")
 
     def __init__(self, command_id: int, loop: asyncio.AbstractEventLoop, final: Waiter | None = None) -> None:
-        super().__init__(command_id, final)
+        # Waiter.__init__ inlined: this runs for every request
+        self.command_id = command_id
+        self.frame = None
+        self.error = None
+        self.done = False
+        self.ghost_until = 0.0
+        self.final = final
+        self.deadline = 0.0
+        self.timeout = 0.0
         self.fut: asyncio.Future[None] = loop.create_future()
 
     def _wake(self) -> None:
         if not self.fut.done():
             self.fut.set_result(None)
+
+
+_COMPACT_AT = 256  # timed waiters kept before the finished ones are swept out
 
 
 class AsyncMotion:
@@ -279,6 +292,11 @@ class AsyncGripper:
         self._streams: dict[Command, list[AsyncStream]] = {}
         self._closing = False
         self._reconnect_task: asyncio.Task[None] | None = None
+        # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
+        # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
+        self._timed: list[_AWaiter] = []
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at = 0.0
         self.on_reconnect: Callable[[SystemFlag], None] | None = None
         """Called with the system flags found after every reconnection."""
         self.on_connection_lost: Callable[[BaseException | None], None] | None = None
@@ -353,6 +371,10 @@ class AsyncGripper:
         t, self._transport = self._transport, None
         if t is not None:
             t.close()
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._timed.clear()
         self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
         if end_streams:
             for cmd, streams in list(self._streams.items()):
@@ -418,12 +440,15 @@ class AsyncGripper:
 
     # ------------------------------------------------------------------ bytes in
     def _on_data(self, data: memoryview) -> None:
-        if not self._parser.buffered:
-            frame = frame_from(data, self.verify_checksum)
+        parser = self._parser
+        if not parser.buffered:
+            frame = frame_from(bytes(data), parser.verify_checksum, parser.max_payload)
             if frame is not None:
-                self._on_event(frame)
+                if self._comm.active:
+                    self._comm.frame(RX, frame)
+                self._demux.feed(frame)
                 return
-        for ev in self._parser.feed(data):
+        for ev in parser.feed(data):
             self._on_event(ev)
 
     def _on_datagram(self, data: bytes) -> None:
@@ -476,44 +501,86 @@ class AsyncGripper:
             except (builtins.TimeoutError, asyncio.CancelledError):
                 pass
 
-    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, _AWaiter | None]:
-        """Send one request; return its first reply and the waiter of a pending final."""
-        if self._transport is None:
-            await self._await_reconnect()
+    def _send(self, call: Call[Any], timeout: float | None) -> tuple[_AWaiter, _AWaiter | None]:
+        """Send one request; return the waiter of its first reply (timed) and that of a pending final."""
         t = self._transport_or_raise(call.command_id)
         loop = self._loop
         assert loop is not None
-        final = _AWaiter(call.command_id, loop) if call.pending else None
-        w = _AWaiter(call.command_id, loop, final)
+        cid = call.command_id
+        final = _AWaiter(cid, loop) if call.pending else None
+        w = _AWaiter(cid, loop, final)
         self._demux.expect(w)
         wire = call.wire
         if call.auto_read and self._subs:
             wire = self._read_wire(call)
         if self._comm.active:
-            self._comm.frame(TX, Frame(call.command_id, wire[6:-2]))
+            self._comm.frame(TX, Frame(cid, wire[6:-2]))
+        self._time(w, loop, self.timeout if timeout is None else timeout)
         t.write(wire)
-        return await self._wait(w, self.timeout if timeout is None else timeout), final
+        return w, final
+
+    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, _AWaiter | None]:
+        """Send one request; return its first reply and the waiter of a pending final."""
+        if self._transport is None:
+            await self._await_reconnect()
+        w, final = self._send(call, timeout)
+        return await self._reply(w), final
 
     def _read_wire(self, call: Call[Any]) -> bytes:
         """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
         sub = self._subs.get(Command(call.command_id))
         return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
-    async def _wait(self, w: _AWaiter, timeout: float) -> Frame:
+    # -- timeouts
+    def _time(self, w: _AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
+        """Fail ``w`` with TimeoutError if it is not done ``timeout`` s from now."""
+        w.deadline = d = loop.time() + timeout
+        w.timeout = timeout
+        timed = self._timed
+        if len(timed) >= _COMPACT_AT:
+            timed[:] = [x for x in timed if not x.done]
+        timed.append(w)
+        if self._timer is None or d < self._timer_at:
+            self._arm(loop, d)
+
+    def _arm(self, loop: asyncio.AbstractEventLoop, when: float) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer = loop.call_at(when, self._on_timer)
+        self._timer_at = when
+
+    def _on_timer(self) -> None:
+        self._timer = None
         loop = self._loop
         assert loop is not None
-        handle = loop.call_later(timeout, self._expire, w, timeout)
+        now = loop.time()
+        keep: list[_AWaiter] = []
+        for w in self._timed:
+            if w.done:
+                continue
+            if w.deadline <= now:
+                self._expire(w, w.timeout)
+            else:
+                keep.append(w)
+        self._timed = keep
+        if keep:
+            self._arm(loop, min(w.deadline for w in keep))
+
+    async def _reply(self, w: _AWaiter) -> Frame:
         try:
             await w.fut
         except asyncio.CancelledError:
             self._demux.abandon(w)
             raise
-        finally:
-            handle.cancel()
         if w.error is not None:
             raise w.error
-        assert w.frame is not None
-        return w.frame
+        return w.frame  # type: ignore[return-value]  # set when done without error
+
+    async def _wait(self, w: _AWaiter, timeout: float) -> Frame:
+        loop = self._loop
+        assert loop is not None
+        self._time(w, loop, timeout)
+        return await self._reply(w)
 
     def _expire(self, w: _AWaiter, timeout: float) -> None:
         if not w.done:
@@ -523,7 +590,21 @@ class AsyncGripper:
 
     async def _run(self, call: Call[T], timeout: float | None = None) -> T:
         """An immediate command: the decoded result, or the matching WsgError."""
-        frame, _ = await self._exchange(call, timeout)
+        if self._transport is None:
+            await self._await_reconnect()
+        w, _ = self._send(call, timeout)
+        try:
+            await w.fut
+        except asyncio.CancelledError:
+            self._demux.abandon(w)
+            raise
+        if w.error is not None:
+            raise w.error
+        frame = w.frame
+        assert frame is not None
+        p = frame.payload
+        if len(p) >= 2 and p[0] == 0 and p[1] == 0:  # E_SUCCESS
+            return decode_success(call, frame)
         return await self._result(call, frame)
 
     async def _result(self, call: Call[T], frame: Frame) -> T:

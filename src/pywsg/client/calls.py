@@ -55,6 +55,8 @@ class Call(Generic[T]):
     raw: bool = False  # custom request: the result is a Reply, errors are the caller's choice
     auto_read: bool = False  # a one-off read of an auto-update value (flags 0: it would end a subscription)
     fast: Callable[[bytes], T] | None = None  # whole reply payload (status included) -> result, fixed layouts
+    # payload -> result for calls whose results are immutable (floats, ints, flags): decoded once
+    memo: dict[bytes, T] | None = field(default=None, compare=False, hash=False)
 
 
 def _none(_v: Values) -> None:
@@ -62,11 +64,14 @@ def _none(_v: Values) -> None:
 
 
 def _make(cmd: Command, decode: Callable[[Values], T], none_on: frozenset[int] = frozenset(),
-          auto_read: bool = False, **values: Any) -> Call[T]:
+          auto_read: bool = False, memo: bool = False, **values: Any) -> Call[T]:
+    """``memo``: the result is immutable (a number or flags), so it may be decoded once per payload."""
     spec = CATALOG[cmd]
     payload = spec.encode_request(values) if spec.request else b""
+    fast = _fast_decoder(spec, decode)
     return Call(int(cmd), encode_frame(int(cmd), payload), decode, pending=spec.kind is not Kind.IMMEDIATE,
-                motion=spec.motion, none_on=none_on, auto_read=auto_read, fast=_fast_decoder(spec, decode))
+                motion=spec.motion, none_on=none_on, auto_read=auto_read, fast=fast,
+                memo={} if memo and fast is not None else None)
 
 
 def _fast_decoder(spec: Any, decode: Callable[[Values], T]) -> Callable[[bytes], T] | None:
@@ -154,7 +159,7 @@ def set_acceleration(acceleration: float) -> Call[None]:
 
 @cache
 def acceleration() -> Call[float]:
-    return _make(Command.GET_ACCELERATION, _float("acceleration"))
+    return _make(Command.GET_ACCELERATION, _float("acceleration"), memo=True)
 
 
 def set_force_limit(force: float) -> Call[None]:
@@ -163,7 +168,7 @@ def set_force_limit(force: float) -> Call[None]:
 
 @cache
 def force_limit() -> Call[float]:
-    return _make(Command.GET_FORCE_LIMIT, _float("force"))
+    return _make(Command.GET_FORCE_LIMIT, _float("force"), memo=True)
 
 
 def set_soft_limits(minus: float, plus: float) -> Call[None]:
@@ -218,27 +223,27 @@ def decode_sample(cmd: int, v: Values) -> SystemFlag | GripperState | float | in
 @cache
 def system_state() -> Call[SystemFlag]:
     return _make(Command.GET_SYSTEM_STATE, lambda v: SystemFlag(cast(int, v["state"])), flags=0, period_ms=0,
-                 auto_read=True)
+                 auto_read=True, memo=True)
 
 
 @cache
 def gripper_state() -> Call[GripperState | int]:
-    return _make(Command.GET_GRIPPER_STATE, _gstate, flags=0, period_ms=0, auto_read=True)
+    return _make(Command.GET_GRIPPER_STATE, _gstate, flags=0, period_ms=0, auto_read=True, memo=True)
 
 
 @cache
 def width() -> Call[float]:
-    return _make(Command.GET_OPENING_WIDTH, _float("width"), flags=0, period_ms=0, auto_read=True)
+    return _make(Command.GET_OPENING_WIDTH, _float("width"), flags=0, period_ms=0, auto_read=True, memo=True)
 
 
 @cache
 def speed() -> Call[float]:
-    return _make(Command.GET_SPEED, _float("speed"), flags=0, period_ms=0, auto_read=True)
+    return _make(Command.GET_SPEED, _float("speed"), flags=0, period_ms=0, auto_read=True, memo=True)
 
 
 @cache
 def force() -> Call[float]:
-    return _make(Command.GET_FORCE, _float("force"), flags=0, period_ms=0, auto_read=True)
+    return _make(Command.GET_FORCE, _float("force"), flags=0, period_ms=0, auto_read=True, memo=True)
 
 
 @cache
@@ -246,7 +251,8 @@ def subscribe(cmd: Command, period: float, change_only: bool) -> Call[SystemFlag
     period_ms = round(period * 1000)
     if not 10 <= period_ms <= 0xFFFF:
         raise ValueError(f"period must be 0.010 .. 65.535 s, not {period!r}")
-    return _make(cmd, lambda v: decode_sample(cmd, v), flags=_read_flags(True, change_only), period_ms=period_ms)
+    return _make(cmd, lambda v: decode_sample(cmd, v), flags=_read_flags(True, change_only), period_ms=period_ms,
+                 memo=True)
 
 
 @cache
@@ -263,7 +269,7 @@ def statistics(reset: bool) -> Call[Statistics]:
 
 @cache
 def temperature() -> Call[float]:
-    return _make(Command.GET_TEMPERATURE, lambda v: cast(int, v["temperature"]) / 10.0)
+    return _make(Command.GET_TEMPERATURE, lambda v: cast(int, v["temperature"]) / 10.0, memo=True)
 
 
 # -- system
@@ -309,7 +315,7 @@ def finger_info(n: int) -> Call[FingerInfo]:
 
 @cache
 def finger_flags(n: int) -> Call[FingerFlag]:
-    return _make(Command(_finger_base(n) + 1), lambda v: FingerFlag(cast(int, v["flags"])))
+    return _make(Command(_finger_base(n) + 1), lambda v: FingerFlag(cast(int, v["flags"])), memo=True)
 
 
 @cache

@@ -5,7 +5,8 @@ from __future__ import annotations
 from typing import Any, TypeVar, cast
 
 from ..errors import BadChecksumReply, ConnectionLostError, ProtocolError, WsgError, error_for
-from ..protocol import CATALOG, Command, Frame, Status, SystemFlag, crc16
+from ..protocol import CATALOG, Command, Frame, Status, SystemFlag
+from ..protocol.parser import MaxPayload, whole_frame
 from .calls import AUTO_UPDATE_IDS, STREAM_NAMES, Call, decode_sample
 from .types import Reply, Sample
 
@@ -23,15 +24,27 @@ def status_of(frame: Frame) -> Status | int:
                             from_device=False) from None
 
 
-def frame_from(data: bytes | bytearray | memoryview, verify: bool) -> Frame | None:
+# Verified short frames by their exact bytes: a state read answers the same bytes until the state
+# changes, so the CRC and the Frame are computed once. Only frames whose checksum was checked go in
+# (a client that does not verify never reads from it); bounded, cleared when full.
+_FRAMES: dict[bytes, Frame] = {}
+_FRAMES_MAX = 1024
+_CACHED_FRAME_LEN = 64
+
+
+def frame_from(data: bytes, verify: bool, max_payload: MaxPayload) -> Frame | None:
     """Fast path: ``data`` is exactly one whole frame with a good CRC (the usual single reply per
     read). None: let the incremental parser handle it (partial, several, or bad frames)."""
-    n = len(data)
-    if n < 8 or data[0] != 0xAA or data[1] != 0xAA or data[2] != 0xAA or n != 8 + (data[4] | data[5] << 8):
-        return None
-    if verify and crc16(data[:-2]) != data[-2] | data[-1] << 8:
-        return None
-    return Frame(data[3], bytes(data[6:-2]))
+    if verify:
+        frame = _FRAMES.get(data)
+        if frame is not None:
+            return frame
+    frame = whole_frame(data, verify, max_payload)
+    if frame is not None and verify and len(data) <= _CACHED_FRAME_LEN:
+        if len(_FRAMES) >= _FRAMES_MAX:
+            _FRAMES.clear()
+        _FRAMES[data] = frame
+    return frame
 
 
 def is_success(frame: Frame) -> bool:
@@ -46,14 +59,24 @@ def needs_flags(call: Call[Any], status: Status | int) -> bool:
 
 def decode_success(call: Call[T], frame: Frame) -> T:
     """The result of an E_SUCCESS reply. Raises ProtocolError on a reply of the wrong shape."""
+    memo = call.memo
+    if memo is not None:  # immutable results of fixed layouts, by payload
+        r = memo.get(frame.payload)
+        if r is not None:
+            return r
     if call.raw:
         return cast(T, Reply(frame.command_id, status_of(frame), frame.params))
     if call.fast is not None:
         try:
-            return call.fast(frame.payload)
+            r = call.fast(frame.payload)
         except ValueError as exc:
             raise ProtocolError(Status.E_CMD_FORMAT_ERROR, call.command_id, f"malformed reply: {exc}",
                                 from_device=False) from None
+        if memo is not None:
+            if len(memo) >= _MEMO_MAX:
+                memo.clear()
+            memo[frame.payload] = r
+        return r
     spec = CATALOG.get(call.command_id)
     if spec is None or not spec.reply:
         return call.decode({})
@@ -63,6 +86,9 @@ def decode_success(call: Call[T], frame: Frame) -> T:
         raise ProtocolError(Status.E_CMD_FORMAT_ERROR, call.command_id, f"malformed reply: {exc}",
                             from_device=False) from None
     return call.decode(values)
+
+
+_MEMO_MAX = 512
 
 
 def raise_for(call: Call[Any], frame: Frame, flags: SystemFlag | None) -> WsgError:

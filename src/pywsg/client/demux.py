@@ -143,6 +143,14 @@ class Demux:
 
     def feed(self, frame: Frame) -> None:
         cid = frame.command_id
+        q = self.replies.get(cid)
+        if q and cid not in self.streams and not self.finals.get(cid):
+            # the common case: one call waits for this ID, no stream, no running motion
+            head = q[0]
+            if not head.ghost_until and (head.final is None or _status(frame) != Status.E_CMD_PENDING):
+                q.popleft()
+                head.resolve(frame)
+                return
         status = _status(frame)
         sinks = self.streams.get(cid)
         if sinks and status == Status.E_SUCCESS:

@@ -392,14 +392,17 @@ class Gripper:
     # ------------------------------------------------------------------ reading
     def _feed(self, data: bytes) -> None:
         """Route received bytes (call with self._cv held)."""
-        if not self._parser.buffered:
-            frame = frame_from(data, self.verify_checksum)
+        parser = self._parser
+        if not parser.buffered:
+            frame = frame_from(data, parser.verify_checksum, parser.max_payload)
             if frame is not None:
-                self._on_event(frame)
+                if self._comm.active:
+                    self._comm.frame(RX, frame)
+                self._demux.feed(frame)
                 return
         t = self._transport
         events = parse_datagram(data, self.verify_checksum) if t is not None and t.datagram else \
-            self._parser.feed(data)
+            parser.feed(data)
         for ev in events:
             self._on_event(ev)
 
@@ -428,32 +431,20 @@ class Gripper:
         """Block until ``w`` is done or ``timeout`` s passed (then, with ``abandon``, fail it with
         TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does."""
         deadline = time.monotonic() + timeout
-        cv = self._cv
         lock = self._lock
         with lock:
-            while not w.done:
-                if not self._reading:
-                    self._reading = True
-                    break
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    if abandon:
-                        self._expire(w, timeout)
-                    return
-                self._sleepers += 1
-                try:
-                    cv.wait(remaining)
-                finally:
-                    self._sleepers -= 1
-            else:
+            if w.done:
                 return
-        # this thread reads
+            if self._reading and not self._sleep(w, deadline, timeout, abandon):
+                return
+            self._reading = True
+        # this thread reads; it gives the reading up in the same critical section that completes w
+        remaining = timeout
         try:
-            while not w.done:
+            while True:
                 t = self._transport
                 if t is None:
                     break
-                remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     if abandon:
                         with lock:
@@ -464,18 +455,50 @@ class Gripper:
                 except OSError as exc:
                     with lock:
                         self._reading = False
+                        self._wake_sleepers()
                     self._lost(exc)
                     return
                 if data:
                     with lock:
                         self._feed(data)
-                        if self._sleepers:
-                            cv.notify_all()
-        finally:
+                        if w.done:
+                            self._reading = False
+                            self._wake_sleepers()
+                            return
+                        self._wake_sleepers()
+                elif w.done:  # completed by a failure (e.g. the connection dropped)
+                    break
+                remaining = deadline - time.monotonic()
+        except BaseException:
             with lock:
                 self._reading = False
-                if self._sleepers:
-                    cv.notify_all()
+                self._wake_sleepers()
+            raise
+        with lock:
+            self._reading = False
+            self._wake_sleepers()
+
+    def _wake_sleepers(self) -> None:
+        if self._sleepers:
+            self._cv.notify_all()
+
+    def _sleep(self, w: Waiter, deadline: float, timeout: float, abandon: bool) -> bool:
+        """Another thread reads: sleep until ``w`` is done (False) or the reading is free (True).
+        Call with the lock held."""
+        while not w.done:
+            if not self._reading:
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                if abandon:
+                    self._expire(w, timeout)
+                return False
+            self._sleepers += 1
+            try:
+                self._cv.wait(remaining)
+            finally:
+                self._sleepers -= 1
+        return False
 
     def _expire(self, w: Waiter, timeout: float) -> None:
         if not w.done:
@@ -515,10 +538,22 @@ class Gripper:
             self._lost(exc)
 
     def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, Waiter | None]:
-        t = self._transport_or_raise(call.command_id)
-        final = Waiter(call.command_id) if call.pending else None
-        w = Waiter(call.command_id, final)
-        self._send(t, [w], [self._read_wire(call) if call.auto_read and self._subs else call.wire])
+        t = self._transport
+        if t is None:
+            t = self._transport_or_raise(call.command_id)
+        cid = call.command_id
+        final = Waiter(cid) if call.pending else None
+        w = Waiter(cid, final)
+        wire = self._read_wire(call) if call.auto_read and self._subs else call.wire
+        with self._lock:
+            self._demux.expect(w)
+        if self._comm.active:
+            self._comm.frame(TX, Frame(wire[3], wire[6:-2]))
+        try:
+            with self._send_lock:
+                t.send(wire)
+        except OSError as exc:
+            self._lost(exc)
         self._wait_for(w, self.timeout if timeout is None else timeout)
         if w.error is not None:
             raise w.error
@@ -532,6 +567,9 @@ class Gripper:
 
     def _run(self, call: Call[T], timeout: float | None = None) -> T:
         frame, _ = self._exchange(call, timeout)
+        p = frame.payload
+        if len(p) >= 2 and p[0] == 0 and p[1] == 0:  # E_SUCCESS
+            return decode_success(call, frame)
         return self._result(call, frame)
 
     def _result(self, call: Call[T], frame: Frame) -> T:
