@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import os
 import time
 from typing import Any
 
@@ -13,6 +14,7 @@ import pytest
 from pywsg.device import ManualClock
 from pywsg.protocol import CATALOG, Frame, Status
 from pywsg.server import SimServer
+from pywsg.server.scheduler import timerfd_available
 
 STREAMS = (0x40, 0x41, 0x43, 0x44)
 
@@ -28,9 +30,20 @@ def subscribe(gripper: Any, period_ms: int = 10) -> list[Frame]:
 
 
 def fire_handles(loop: asyncio.AbstractEventLoop) -> int:
-    """Timer handles on the loop that belong to the scheduler."""
+    """Loop timer handles that belong to the scheduler (it keeps its own precise timer instead)."""
     scheduled = getattr(loop, "_scheduled", [])
-    return sum(1 for h in scheduled if not h.cancelled() and "Scheduler._fire" in repr(h))
+    return sum(1 for h in scheduled if not h.cancelled() and "Scheduler" in repr(h))
+
+
+def timer_fds() -> int:
+    """timerfds this process holds (Linux)."""
+    n = 0
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            n += "timerfd" in os.readlink(f"/proc/self/fd/{name}")
+        except OSError:  # the fd listdir itself used
+            pass
+    return n
 
 
 async def test_idle_gripper_sets_no_timer_and_burns_no_cpu() -> None:
@@ -55,7 +68,8 @@ async def test_one_timer_for_many_grippers_and_streams() -> None:
         loop = asyncio.get_running_loop()
         for _ in range(10):
             await asyncio.sleep(0.013)
-            assert fire_handles(loop) <= 1  # one loop timer, not one per stream or gripper
+            assert fire_handles(loop) == 0  # no loop timer per stream or gripper: one scheduler timer
+            assert sim.scheduler is not None and sim.scheduler.armed
             assert sim.scheduler is not None and sim.scheduler.pending <= 20  # one entry per gripper
         t0 = time.monotonic()
         counts0 = [len(i) for i in inboxes]
@@ -95,7 +109,11 @@ async def test_manual_clock_runs_a_motion_without_waiting() -> None:
 
 
 @pytest.mark.realtime
-async def test_auto_update_interval_error_is_small() -> None:
+@pytest.mark.parametrize("timer", ["timerfd", "thread"])
+async def test_auto_update_interval_error_is_small(timer: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    if timer == "timerfd" and not timerfd_available():
+        pytest.skip("no timerfd on this platform")
+    monkeypatch.setenv("PYWSG_SCHEDULER_TIMER", timer)
     async with SimServer(tcp_port=None, udp_port=None) as sim:
         sg = sim.grippers[0]
         stamps: list[float] = []
@@ -112,3 +130,61 @@ async def test_auto_update_interval_error_is_small() -> None:
         # p99 <= 1 ms is the target on a quiet machine (docs/benchmarks.md); the test box is shared
         # with other test runs, so only the median is held tight here
         assert gaps[len(gaps) // 2] < 1.0, gaps
+
+
+@pytest.mark.realtime
+async def test_precise_timing_never_blocks_the_loop() -> None:
+    """Rounds are short: the loop thread does not sleep towards a due time, so requests are served."""
+    async with SimServer(tcp_port=None, udp_port=None, count=2) as sim:
+        sched = sim.scheduler
+        assert sched is not None
+        for sg in sim.grippers:
+            subscribe(sg.gripper)
+            sg.runner.wake()
+        fire = sched._fire
+        busy = 0.0
+
+        def timed_fire() -> None:
+            nonlocal busy
+            t0 = time.perf_counter()
+            fire()
+            busy += time.perf_counter() - t0
+
+        sched._fire = timed_fire  # type: ignore[method-assign]
+        sched.waker.callback = timed_fire  # type: ignore[attr-defined]
+        # loop responsiveness meanwhile: gaps between loop iterations
+        gaps: list[float] = []
+        t_end = time.perf_counter() + 0.5
+        last = time.perf_counter()
+        rounds0 = sched.rounds
+        while (now := time.perf_counter()) < t_end:
+            gaps.append(now - last)
+            last = now
+            await asyncio.sleep(0)
+        rounds = sched.rounds - rounds0
+        assert rounds >= 30  # the streams were served (~50 rounds in 0.5 s)
+        # sleeping ~1.6 ms of every 10 ms in the loop (the old design) would be ~16 % of the time
+        assert busy / 0.5 < 0.05, f"{busy * 1000:.1f} ms of 500 ms in scheduler rounds"
+        gaps.sort()
+        assert gaps[int(len(gaps) * 0.99)] < 0.001, gaps[-5:]
+
+
+async def test_timer_is_released_when_nothing_is_due() -> None:
+    if not timerfd_available():
+        pytest.skip("no timerfd on this platform")
+    async with SimServer(tcp_port=None, udp_port=None) as sim:
+        sched = sim.scheduler
+        assert sched is not None
+        sg = sim.grippers[0]
+        s = sg.gripper.open_session("test", deliver=lambda f: None)
+        sg.gripper.handle_frame(s, Frame(0x43, CATALOG[0x43].encode_request(flags=1, period_ms=10)))
+        sg.runner.wake()
+        await asyncio.sleep(0.05)
+        assert sched.armed and sched.pending == 1 and timer_fds() == 1
+        sg.gripper.close_session(s)  # no subscription left
+        await asyncio.sleep(0.03)
+        if sched.pending == 0:
+            assert not sched.armed
+    await asyncio.sleep(0)
+    assert sched.pending == 0 and not sched.armed
+    assert timer_fds() == 0  # the timer fd is closed with the last entry

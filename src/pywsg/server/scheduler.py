@@ -2,25 +2,31 @@
 
 The virtual gripper is sans-IO: ``next_due()`` says when its next event falls due (the final reply of
 a motion, an auto-update packet, a temperature step) and ``poll()`` hands out what is due. A runner
-keeps its gripper's next due time in the :class:`Scheduler`'s heap; the scheduler arms **one** loop
-timer for the earliest entry of all grippers and streams. No fixed tick and no busy loop: an idle
-gripper with no subscriptions has no entry at all.
+keeps its gripper's next due time in the :class:`Scheduler`'s heap; the scheduler arms **one** timer
+for the earliest entry of all grippers and streams. No fixed tick and no busy loop: an idle gripper
+with no subscriptions has no entry at all.
 
-Precision. The stock asyncio loop waits in ``epoll`` with a timeout rounded *up* to whole
-milliseconds and then often sleeps a second millisecond when it woke a hair early, so
-``asyncio.sleep`` is ~1.2 ms late (p99 ~2.2 ms). The scheduler therefore arms its timer ``early``
-seconds before the due time and sleeps the rest with :func:`time.sleep` (nanosecond timer, no CPU),
-which puts the wakeup within ~0.1–0.7 ms of the due time. The blocking part is at most ``early`` plus
-the loop's lateness. Only grippers on a real-time clock are put on the timer. Events due within one such wakeup are
-served together, and frames for one connection are written in one ``write`` after the round.
+Precision without blocking. The stock asyncio loop waits in ``epoll`` with a timeout rounded *up* to
+whole milliseconds (libuv timers too), so a loop timer is ~1–2 ms late. The scheduler's timer is
+therefore not a loop timer: on Linux it is a ``timerfd`` (``CLOCK_MONOTONIC``, absolute expiry with
+nanosecond resolution) that the loop watches like a socket, so ``epoll`` itself returns when the due
+time comes — typically within ~0.05–0.1 ms — and the loop thread never sleeps: requests arriving
+just before a due time are answered at once. Elsewhere a helper thread waits precisely (the wait
+releases the GIL) and wakes the loop with ``call_soon_threadsafe``. Events due by the time a round
+runs are served together, and frames for one connection are written in one ``write`` after the round.
 """
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import heapq
 import itertools
 import logging
+import math
+import os
+import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import Any, Protocol
@@ -39,33 +45,190 @@ class Flushable(Protocol):
     def flush(self) -> None: ...
 
 
-def _is_uvloop(loop: asyncio.AbstractEventLoop) -> bool:
-    return type(loop).__module__.startswith("uvloop")
+class Waker(Protocol):
+    """Calls back on the loop thread at an absolute ``time.monotonic()`` time."""
+
+    def arm(self, when: float) -> None: ...
+
+    def disarm(self) -> None: ...
+
+    def close(self) -> None: ...
 
 
-def default_early(loop: asyncio.AbstractEventLoop | None = None) -> float:
-    """Seconds to wake before a due time: covers the loop's own lateness (see module docstring)."""
-    if _is_uvloop(loop or asyncio.get_running_loop()):
-        return 0.0012  # libuv timers have whole-millisecond resolution
-    return 0.0016
+# -- Linux: timerfd watched by the loop ----------------------------------------------------------
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+class _Itimerspec(ctypes.Structure):
+    _fields_ = [("it_interval", _Timespec), ("it_value", _Timespec)]
+
+
+_CLOCK_MONOTONIC = 1
+_TFD_NONBLOCK = os.O_NONBLOCK
+_TFD_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+_TFD_TIMER_ABSTIME = 1
+_libc: Any = None
+
+
+def _timerfd_libc() -> Any:
+    """libc with timerfd_create/timerfd_settime, or None (not Linux, or time.monotonic is another clock)."""
+    global _libc
+    if _libc is None:
+        _libc = False
+        impl = time.get_clock_info("monotonic").implementation
+        if sys.platform.startswith("linux") and "CLOCK_MONOTONIC" in impl and "RAW" not in impl:
+            try:
+                libc = ctypes.CDLL(None, use_errno=True)
+                libc.timerfd_create.argtypes = [ctypes.c_int, ctypes.c_int]
+                libc.timerfd_settime.argtypes = [
+                    ctypes.c_int, ctypes.c_int, ctypes.POINTER(_Itimerspec), ctypes.c_void_p
+                ]
+                _libc = libc
+            except (OSError, AttributeError):
+                pass
+    return _libc or None
+
+
+def timerfd_available() -> bool:
+    return _timerfd_libc() is not None
+
+
+class TimerFdWaker:
+    """A ``timerfd`` on ``CLOCK_MONOTONIC`` (what :func:`time.monotonic` reads) in the loop's selector.
+
+    The fd exists only while armed, so an idle process holds none and a closed loop leaks none.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, callback: Callable[[], None]) -> None:
+        self._libc = _timerfd_libc()
+        if self._libc is None:
+            raise OSError("timerfd not available")
+        self.loop = loop
+        self.callback = callback
+        self.fd = -1
+        self._spec = _Itimerspec()
+        self._spec_ref = ctypes.byref(self._spec)
+
+    def arm(self, when: float) -> None:
+        if self.fd < 0:
+            fd = self._libc.timerfd_create(_CLOCK_MONOTONIC, _TFD_NONBLOCK | _TFD_CLOEXEC)
+            if fd < 0:
+                err = ctypes.get_errno()
+                raise OSError(err, os.strerror(err))
+            self.fd = fd
+            self.loop.add_reader(fd, self._readable)
+        sec = math.floor(when)
+        ns = int((when - sec) * 1e9)
+        if sec <= 0 and ns <= 0:
+            ns = 1  # a zero expiry would disarm
+        value = self._spec.it_value
+        value.tv_sec = sec
+        value.tv_nsec = ns
+        if self._libc.timerfd_settime(self.fd, _TFD_TIMER_ABSTIME, self._spec_ref, None) < 0:
+            err = ctypes.get_errno()
+            raise OSError(err, os.strerror(err))
+
+    def disarm(self) -> None:
+        self.close()
+
+    def _readable(self) -> None:
+        try:
+            os.read(self.fd, 8)
+        except (BlockingIOError, InterruptedError):
+            return  # re-armed after it expired: not due yet
+        self.callback()
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            fd, self.fd = self.fd, -1
+            if not self.loop.is_closed():
+                self.loop.remove_reader(fd)
+            os.close(fd)
+
+
+# -- elsewhere: a helper thread that waits precisely ----------------------------------------------
+
+class ThreadWaker:
+    """A daemon thread waits until the due time (the wait releases the GIL), then wakes the loop."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, callback: Callable[[], None]) -> None:
+        self.loop = loop
+        self.callback = callback
+        self._cond = threading.Condition()
+        self._when = math.inf
+        self._closed = False
+        self._thread: threading.Thread | None = None
+
+    def arm(self, when: float) -> None:
+        with self._cond:
+            self._when = when
+            self._cond.notify()
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="pywsg-scheduler", daemon=True)
+            self._thread.start()
+
+    def disarm(self) -> None:
+        with self._cond:
+            self._when = math.inf
+            self._cond.notify()
+
+    def _run(self) -> None:
+        cond = self._cond
+        with cond:
+            while not self._closed:
+                when = self._when
+                if when == math.inf:
+                    cond.wait()
+                    continue
+                wait = when - time.monotonic()
+                if wait > 0:
+                    cond.wait(wait)
+                    continue
+                self._when = math.inf
+                try:
+                    self.loop.call_soon_threadsafe(self._fire)
+                except RuntimeError:  # loop closed
+                    return
+
+    def _fire(self) -> None:
+        if not self._closed:
+            self.callback()
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
+        self._thread = None
+
+
+def make_waker(
+    loop: asyncio.AbstractEventLoop, callback: Callable[[], None], kind: str | None = None
+) -> Waker:
+    """``kind``: ``"timerfd"``, ``"thread"`` or None (timerfd where available, else thread)."""
+    if kind is None:
+        kind = os.environ.get("PYWSG_SCHEDULER_TIMER") or ("timerfd" if timerfd_available() else "thread")
+    if kind == "timerfd":
+        return TimerFdWaker(loop, callback)
+    if kind == "thread":
+        return ThreadWaker(loop, callback)
+    raise ValueError(f"unknown timer kind {kind!r}")
 
 
 class Scheduler:
-    """A heap of due times (``time.monotonic`` seconds) served by one loop timer.
+    """A heap of due times (``time.monotonic`` seconds) served by one precise timer.
 
     One per event loop (:func:`get_scheduler`); all grippers of a process share it.
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop | None = None, early: float | None = None) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop | None = None, timer: str | None = None) -> None:
         self.loop = loop or asyncio.get_running_loop()
-        self.early = default_early(self.loop) if early is None else early
-        # libuv measures timers from a loop time cached at the start of an iteration, so a uvloop
-        # timer may fire up to ~1 ms before its time: accept that much more before re-arming
-        self.slack = 0.0015 if _is_uvloop(self.loop) else 0.0002
+        self.waker = make_waker(self.loop, self._fire, timer)
+        self.timer = "timerfd" if isinstance(self.waker, TimerFdWaker) else "thread"
         self._heap: list[tuple[float, int, DeviceRunner]] = []
         self._seq = itertools.count()
-        self._handle: asyncio.TimerHandle | None = None
-        self._armed_for = float("inf")
+        self._armed_for = math.inf
         self._dirty: dict[int, Flushable] = {}
         self.in_round = False
         self.rounds = 0
@@ -83,27 +246,32 @@ class Scheduler:
 
     def cancel(self, runner: DeviceRunner) -> None:
         runner._entry = None  # lazily dropped from the heap
-        runner._entry_when = float("inf")
+        runner._entry_when = math.inf
+        if not self.in_round:
+            self._arm()  # drops the timer when nothing else is queued
 
     @property
     def pending(self) -> int:
         """Live entries in the heap."""
         return sum(1 for _, seq, r in self._heap if r._entry == seq)
 
+    @property
+    def armed(self) -> bool:
+        """True while the timer is set (it is off when nothing is queued)."""
+        return self._armed_for != math.inf
+
     def _arm(self) -> None:
         heap = self._heap
         while heap and heap[0][2]._entry != heap[0][1]:
             heapq.heappop(heap)
-        if self._handle is not None:
-            self._handle.cancel()
-            self._handle = None
         if not heap:
-            self._armed_for = float("inf")
+            self._armed_for = math.inf
+            self.waker.disarm()  # also after it fired: the timerfd is closed with the last entry
             return
         when = heap[0][0]
-        self._armed_for = when
-        delay = when - time.monotonic() - self.early
-        self._handle = self.loop.call_at(self.loop.time() + max(delay, 0.0), self._fire)
+        if when != self._armed_for:
+            self._armed_for = when
+            self.waker.arm(when)
 
     # -- output coalescing -----------------------------------------------------------------
     def mark_dirty(self, conn: Flushable) -> None:
@@ -123,28 +291,26 @@ class Scheduler:
 
     # -- the round -------------------------------------------------------------------------
     def _fire(self) -> None:
-        self._handle = None
-        self._armed_for = float("inf")
+        self._armed_for = math.inf
         self.rounds += 1
         heap = self._heap
         self.in_round = True
-        start = time.monotonic()
+        clock = time.monotonic
+        start = now = clock()
         try:
             while heap:
                 when, seq, runner = heap[0]
                 if runner._entry != seq:
                     heapq.heappop(heap)
                     continue
-                now = time.monotonic()
-                wait = when - now
-                if wait > 0:
-                    # close enough to sleep precisely here; else leave it to the next timer
-                    if wait > self.early + self.slack or now - start > MAX_ROUND:
+                if when > now:
+                    now = clock()
+                    # not due yet: leave it to the timer; a long round lets the loop serve sockets
+                    if when > now or now - start > MAX_ROUND:
                         break
-                    time.sleep(wait)
                 heapq.heappop(heap)
                 runner._entry = None
-                runner._entry_when = float("inf")
+                runner._entry_when = math.inf
                 runner.run()
         finally:
             self.in_round = False
@@ -152,11 +318,9 @@ class Scheduler:
             self._arm()
 
     def close(self) -> None:
-        if self._handle is not None:
-            self._handle.cancel()
-            self._handle = None
         self._heap.clear()
-        self._armed_for = float("inf")
+        self._armed_for = math.inf
+        self.waker.close()
 
 
 _SCHEDULERS: dict[int, Scheduler] = {}
@@ -167,6 +331,8 @@ def get_scheduler(loop: asyncio.AbstractEventLoop | None = None) -> Scheduler:
     loop = loop or asyncio.get_running_loop()
     sched = _SCHEDULERS.get(id(loop))
     if sched is None or sched.loop is not loop or loop.is_closed():
+        if sched is not None:
+            sched.close()  # a stale scheduler of a closed loop that had the same id
         sched = Scheduler(loop)
         _SCHEDULERS[id(loop)] = sched
     return sched
