@@ -35,7 +35,7 @@ from ..protocol import (
 from . import calls
 from .aio import ReconnectPolicy
 from .calls import Call
-from .commlog import RX, TX, CommHook, CommLog
+from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -250,6 +250,7 @@ class Gripper:
         self._sleepers = 0  # threads waiting on self._cv
         self._transport: SyncTransport | None = None
         self._parser = FrameParser(verify_checksum)
+        self._partial = False  # the parser holds part of a frame (kept by _feed, the parser's only feeder)
         self._demux = Demux(time.monotonic)
         self._comm = CommLog()
         self._subs: dict[Command, tuple[float, bool]] = {}
@@ -296,6 +297,7 @@ class Gripper:
             raise ConnectionLostError(f"cannot connect to {self.endpoint}: {exc}") from exc
         with self._lock:
             self._parser = FrameParser(self.verify_checksum)
+            self._partial = False
             self._transport = t
             self._closing = False
         log.debug("connected to %s", self.endpoint)
@@ -393,7 +395,7 @@ class Gripper:
     def _feed(self, data: bytes) -> None:
         """Route received bytes (call with self._cv held)."""
         parser = self._parser
-        if not parser.buffered:
+        if not self._partial:
             frame = frame_from(data, parser.verify_checksum, parser.max_payload)
             if frame is not None:
                 if self._comm.active:
@@ -401,8 +403,11 @@ class Gripper:
                 self._demux.feed(frame)
                 return
         t = self._transport
-        events = parse_datagram(data, self.verify_checksum) if t is not None and t.datagram else \
-            parser.feed(data)
+        if t is not None and t.datagram:
+            events = parse_datagram(data, self.verify_checksum)
+        else:
+            events = parser.feed(data)
+            self._partial = parser.buffered > 0
         for ev in events:
             self._on_event(ev)
 
@@ -430,15 +435,20 @@ class Gripper:
     def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True) -> None:
         """Block until ``w`` is done or ``timeout`` s passed (then, with ``abandon``, fail it with
         TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does."""
-        deadline = time.monotonic() + timeout
-        lock = self._lock
-        with lock:
+        with self._lock:
             if w.done:
                 return
-            if self._reading and not self._sleep(w, deadline, timeout, abandon):
+            if self._reading and not self._sleep(w, time.monotonic() + timeout, timeout, abandon):
                 return
             self._reading = True
-        # this thread reads; it gives the reading up in the same critical section that completes w
+        self._read(w, timeout, abandon)
+
+    def _read(self, w: Waiter, timeout: float, abandon: bool, logged: bool = True) -> None:
+        """Read the transport until ``w`` is done or ``timeout`` s passed; the caller has set
+        ``_reading``. The reading is given up in the same critical section that completes ``w``.
+        ``logged``: False when the caller found the communication log idle (then a whole frame skips it)."""
+        deadline = time.monotonic() + timeout
+        lock = self._lock
         remaining = timeout
         try:
             while True:
@@ -460,10 +470,21 @@ class Gripper:
                     return
                 if data:
                     with lock:
-                        self._feed(data)
+                        if self._partial:
+                            self._feed(data)
+                        else:
+                            parser = self._parser
+                            frame = frame_from(data, parser.verify_checksum, parser.max_payload)
+                            if frame is None:
+                                self._feed(data)
+                            else:  # one whole frame: the usual reply
+                                if logged and self._comm.active:
+                                    self._comm.frame(RX, frame)
+                                self._demux.feed(frame)
                         if w.done:
                             self._reading = False
-                            self._wake_sleepers()
+                            if self._sleepers:
+                                self._cv.notify_all()
                             return
                         self._wake_sleepers()
                 elif w.done:  # completed by a failure (e.g. the connection dropped)
@@ -545,16 +566,37 @@ class Gripper:
         final = Waiter(cid) if call.pending else None
         w = Waiter(cid, final)
         wire = self._read_wire(call) if call.auto_read and self._subs else call.wire
+        if timeout is None:
+            timeout = self.timeout
+        comm = self._comm
+        logged = comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG)
         with self._lock:
             self._demux.expect(w)
-        if self._comm.active:
-            self._comm.frame(TX, Frame(wire[3], wire[6:-2]))
+            reader = not self._reading  # nobody reads: this thread will, no second lock round
+            if reader:
+                self._reading = True
+        if logged:
+            comm.frame(TX, Frame(wire[3], wire[6:-2]))
         try:
             with self._send_lock:
                 t.send(wire)
         except OSError as exc:
+            if reader:
+                with self._lock:
+                    self._reading = False
+                    self._wake_sleepers()
             self._lost(exc)
-        self._wait_for(w, self.timeout if timeout is None else timeout)
+            reader = False
+        except BaseException:
+            if reader:
+                with self._lock:
+                    self._reading = False
+                    self._wake_sleepers()
+            raise
+        if reader:
+            self._read(w, timeout, True, logged)
+        else:
+            self._wait_for(w, timeout)
         if w.error is not None:
             raise w.error
         assert w.frame is not None

@@ -46,13 +46,12 @@ class _SocketWaits:
             self.sock.settimeout(send_timeout)
 
     def _set_rcv(self, timeout: float) -> None:
-        cur = self._rcv
-        if timeout > cur or timeout < cur - _TIMEOUT_SLACK:
-            if _KERNEL_TIMEOUTS:
-                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
-            else:
-                self.sock.settimeout(max(timeout, 1e-6))
-            self._rcv = timeout
+        """Call when ``timeout`` is above ``_rcv`` or more than ``_TIMEOUT_SLACK`` below it."""
+        if _KERNEL_TIMEOUTS:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
+        else:
+            self.sock.settimeout(max(timeout, 1e-6))
+        self._rcv = timeout
 
 
 class SyncTransport:
@@ -86,7 +85,9 @@ class TcpSyncTransport(SyncTransport, _SocketWaits):
         self.sock.sendall(data)
 
     def recv(self, timeout: float) -> bytes:
-        self._set_rcv(timeout)
+        cur = self._rcv
+        if timeout > cur or timeout < cur - _TIMEOUT_SLACK:
+            self._set_rcv(timeout)
         try:
             data = self.sock.recv(_RECV_SIZE)
         except (BlockingIOError, TimeoutError):  # SO_RCVTIMEO expired (EAGAIN) / Python-level timeout
@@ -125,7 +126,9 @@ class UdpSyncTransport(SyncTransport, _SocketWaits):
             self.sock.sendto(f, self.remote)
 
     def recv(self, timeout: float) -> bytes:
-        self._set_rcv(timeout)
+        cur = self._rcv
+        if timeout > cur or timeout < cur - _TIMEOUT_SLACK:
+            self._set_rcv(timeout)
         while True:
             try:
                 return self.sock.recv(_DGRAM_SIZE)
