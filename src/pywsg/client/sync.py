@@ -543,14 +543,14 @@ class Gripper:
         return t
 
     def _send(self, t: SyncTransport, waiters: list[Waiter], wires: list[bytes]) -> None:
-        with self._lock:
-            for w in waiters:
-                self._demux.expect(w)
         if self._comm.active:
             for wire in wires:
                 self._comm.frame(TX, Frame(wire[3], wire[6:-2]))
         try:
-            with self._send_lock:
+            with self._send_lock:  # registered in the order of sending (FIFO per ID)
+                with self._lock:
+                    for w in waiters:
+                        self._demux.expect(w)
                 if len(wires) == 1:
                     t.send(wires[0])
                 else:
@@ -570,15 +570,17 @@ class Gripper:
             timeout = self.timeout
         comm = self._comm
         logged = comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG)
-        with self._lock:
-            self._demux.expect(w)
-            reader = not self._reading  # nobody reads: this thread will, no second lock round
-            if reader:
-                self._reading = True
         if logged:
             comm.frame(TX, Frame(wire[3], wire[6:-2]))
+        reader = False
         try:
+            # registered under the send lock: replies of one ID come back in the order of sending
             with self._send_lock:
+                with self._lock:
+                    self._demux.expect(w)
+                    reader = not self._reading  # nobody reads: this thread will, no second lock round
+                    if reader:
+                        self._reading = True
                 t.send(wire)
         except OSError as exc:
             if reader:
