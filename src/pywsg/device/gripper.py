@@ -104,6 +104,15 @@ AUTO_UPDATE_IDS = frozenset((Command.GET_SYSTEM_STATE, Command.GET_GRIPPER_STATE
 QUERY_IDS = frozenset((0x06, 0x31, 0x33, 0x35, 0x40, 0x41, 0x42, 0x43, 0x44, 0x45, 0x46, 0x50, 0x52, 0x53,
                        0x60, 0x61, 0x63, 0x70, 0x71, 0x73))
 MOTION_IDS = frozenset((0x20, 0x21, 0x25, 0x26))
+# plain ints for the hot paths (comparing with an IntEnum member looks it up on the class each time)
+_ID_SYSTEM_STATE = int(Command.GET_SYSTEM_STATE)
+_ID_GRIPPER_STATE = int(Command.GET_GRIPPER_STATE)
+_ID_WIDTH = int(Command.GET_OPENING_WIDTH)
+_ID_SPEED = int(Command.GET_SPEED)
+_OK = b"\x00\x00"  # E_SUCCESS status bytes
+_E_CMD_PENDING = int(Status.E_CMD_PENDING)
+_REQUEST_CACHE_SIZE = 256
+_REQUEST_CACHE_BYTES = 64
 DEFAULT_STIFFNESS = 500.0  # N/mm, assumed part stiffness
 
 
@@ -209,6 +218,10 @@ class VirtualGripper:
         self.plugins: dict[str, FirmwarePlugin] = {}
         self._plugin_cmds: dict[int, FirmwarePlugin] = {}
         self._dispatch = self._build_dispatch()
+        # requests seen before, as their exact bytes (a polling client repeats them): parsed once.
+        # Only frames with a valid checksum go in, so a hit is right whatever the CRC setting.
+        self._requests: dict[bytes, Frame] = {}
+        self._value_frames: dict[int, Frame] = {}  # last value frame per ID (values repeat at rest)
         self.settings = settings
         self._power_up(settings)
 
@@ -336,10 +349,26 @@ class VirtualGripper:
     def _max_payload(self, command_id: int) -> int:
         return _MAX_REQUEST[command_id]
 
+    def _remember(self, data: bytes, frame: Frame) -> None:
+        """``data`` is exactly ``frame`` with a valid checksum: parse it from the cache next time."""
+        if len(data) <= _REQUEST_CACHE_BYTES and type(data) is bytes:
+            if len(self._requests) >= _REQUEST_CACHE_SIZE:
+                self._requests.clear()
+            self._requests[data] = frame
+
     def feed(self, s: Session, data: bytes) -> list[Frame]:
         """Stream bytes from a client; returns the immediate replies in order."""
+        parser = s.parser
+        if type(data) is bytes and not parser.buffered:
+            cached = self._requests.get(data)
+            if cached is not None:  # exactly one frame read before (what the parser would return)
+                return self.handle_frame(s, cached)
+        events = parser.feed(data)
+        if (len(events) == 1 and parser.verify_checksum and not parser.buffered
+                and type(events[0]) is Frame and len(data) == len(events[0].payload) + 8):
+            self._remember(data, events[0])
         out: list[Frame] = []
-        for ev in s.parser.feed(data):
+        for ev in events:
             if isinstance(ev, Frame):
                 out.extend(self.handle_frame(s, ev))
             elif isinstance(ev, ChecksumMismatch):
@@ -352,8 +381,14 @@ class VirtualGripper:
 
     def handle_datagram(self, s: Session, data: bytes) -> list[Frame]:
         """One UDP datagram holds one frame."""
+        cached = self._requests.get(data) if type(data) is bytes else None
+        if cached is not None:
+            return self.handle_frame(s, cached)
+        events = parse_datagram(data, self.settings.crc_check, self._max_payload)
+        if len(events) == 1 and self.settings.crc_check and type(events[0]) is Frame:
+            self._remember(data, events[0])
         out: list[Frame] = []
-        for ev in parse_datagram(data, self.settings.crc_check, self._max_payload):
+        for ev in events:
             if isinstance(ev, Frame):
                 out.extend(self.handle_frame(s, ev))
             elif isinstance(ev, ChecksumMismatch):
@@ -406,7 +441,7 @@ class VirtualGripper:
         out.append(reply)
         p = reply.payload
         code = p[0] | (p[1] << 8)
-        if code not in (0, S.E_CMD_PENDING):
+        if code != 0 and code != _E_CMD_PENDING:
             if not self._bits & _SF_CMD_FAILURE:
                 self._bits |= _SF_CMD_FAILURE
                 self._changed()
@@ -519,42 +554,54 @@ class VirtualGripper:
     # ------------------------------------------------------------------ auto-update
 
     def _value_for(self, cid: int, now: float) -> float | int:
-        if cid == Command.GET_SYSTEM_STATE:
-            return self._flag_bits(now)
-        if cid == Command.GET_GRIPPER_STATE:
-            return int(self.gstate)
-        if cid == Command.GET_OPENING_WIDTH:
+        if cid == _ID_WIDTH:
             return self.width(now)
-        if cid == Command.GET_SPEED:
+        if cid == _ID_SYSTEM_STATE:
+            return self._flag_bits(now)
+        if cid == _ID_GRIPPER_STATE:
+            return int(self.gstate)
+        if cid == _ID_SPEED:
             return self.speed(now)
         return self.force(now)
 
     def _value_frame(self, cid: int, value: float | int) -> Frame:
-        if cid == Command.GET_SYSTEM_STATE:
-            return Frame(cid, b"\x00\x00" + _U32.pack(int(value)))
-        if cid == Command.GET_GRIPPER_STATE:
-            return Frame(cid, b"\x00\x00" + _U8.pack(int(value)))
-        return Frame(cid, b"\x00\x00" + _F32.pack(float(value)))
+        if cid == _ID_SYSTEM_STATE:
+            payload = _OK + _U32.pack(int(value))
+        elif cid == _ID_GRIPPER_STATE:
+            payload = _OK + _U8.pack(int(value))
+        else:
+            payload = _OK + _F32.pack(float(value))
+        last = self._value_frames.get(cid)
+        if last is not None and last.payload == payload:
+            return last  # frames are immutable: the same bytes, one object (and one cached encoding)
+        frame = self._value_frames[cid] = Frame(cid, payload)
+        return frame
 
     def _run_subscriptions(self, now: float) -> None:
         moving = self._traj.is_moving(now)
+        version = self._version
+        outbox = self._outbox
+        value_for = self._value_for
+        value_frame = self._value_frame
         for s in self._sessions:
-            if not s.subscriptions:
+            subs = s.subscriptions
+            if not subs:
                 continue
-            for sub in s.subscriptions.values():
+            for sub in subs.values():
                 if now < sub.next_time:
                     continue
+                cid = sub.command_id
                 if sub.change_only:
-                    if not moving and sub.checked_version == self._version:
+                    if not moving and sub.checked_version == version:
                         continue
-                    sub.checked_version = self._version
-                    value = self._value_for(sub.command_id, now)
-                    if not _changed(sub.command_id, sub.last_value, value):
+                    sub.checked_version = version
+                    value = value_for(cid, now)
+                    if not _changed(cid, sub.last_value, value):
                         continue
                 else:
-                    value = self._value_for(sub.command_id, now)
+                    value = value_for(cid, now)
                 sub.last_value = value
-                self._outbox.append((s, self._value_frame(sub.command_id, value)))
+                outbox.append((s, value_frame(cid, value)))
                 # keep the cadence, but never burst to catch up after a late poll
                 nxt = sub.next_time + sub.period
                 sub.next_time = nxt if nxt > now else now + sub.period

@@ -304,14 +304,14 @@ class Scheduler:
                     heapq.heappop(heap)
                     continue
                 if when > now:
-                    now = clock()
-                    # not due yet: leave it to the timer; a long round lets the loop serve sockets
-                    if when > now or now - start > MAX_ROUND:
-                        break
+                    break  # not due yet: the timer wakes the loop for it
                 heapq.heappop(heap)
                 runner._entry = None
                 runner._entry_when = math.inf
                 runner.run()
+                now = clock()
+                if now - start > MAX_ROUND:
+                    break  # a long round lets the loop serve sockets; the timer is re-armed at once
         finally:
             self.in_round = False
             self.flush()
@@ -358,6 +358,14 @@ def is_realtime(clock: Callable[[], float]) -> bool:
     return abs(clock() - time.monotonic()) < 0.01
 
 
+def _is_monotonic_clock(clock: Callable[[], float]) -> bool:
+    try:
+        from ..device.clock import monotonic_clock
+    except ImportError:  # pragma: no cover - the device package is part of pywsg
+        return False
+    return clock is monotonic_clock
+
+
 class DeviceRunner:
     """Serves one gripper's due events on time.
 
@@ -375,6 +383,8 @@ class DeviceRunner:
         self.scheduler = scheduler
         self.clock = _clock_of(gripper)
         self.realtime = is_realtime(self.clock) if realtime is None else realtime
+        self._native = self.clock is time.monotonic or _is_monotonic_clock(self.clock)
+        """The gripper's clock reads time.monotonic itself: due times need no conversion."""
         self.polls = 0
         self._entry: int | None = None
         self._entry_when = float("inf")
@@ -407,7 +417,7 @@ class DeviceRunner:
             self.scheduler.schedule(self, when)
 
     def _to_monotonic(self, due: float) -> float:
-        if self.clock is time.monotonic:
+        if self._native:
             return due
         return time.monotonic() + (due - self.clock())  # same rate, maybe another origin
 

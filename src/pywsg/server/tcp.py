@@ -55,8 +55,9 @@ class TcpConnection(asyncio.Protocol):
         self.peer = "?"
         self.refused = False
         """Another client holds the command interface: the device answers E_ACCESS_DENIED."""
-        self._out: list[bytes] = []
-        self._out_size = 0
+        self._out: list[Frame] = []
+        self._sched = server.runner.scheduler
+        self._soft = server.limits.output_soft
         self.dropped = 0
         """Auto-update packets dropped because the client did not read."""
         self.last_rx = time.monotonic()
@@ -85,12 +86,18 @@ class TcpConnection(asyncio.Protocol):
             log.info("tcp %s: connected (controls the gripper)", self.peer)
 
     def data_received(self, data: bytes) -> None:
-        self.last_rx = time.monotonic()
+        if self.refused:  # only refused clients are reaped when silent
+            self.last_rx = time.monotonic()
         replies = self.server.gripper.feed(self.session, data)
         if replies:
             if log.isEnabledFor(logging.INFO):
                 log_replies(log, f"tcp {self.peer}", replies)
-            self._write_now(replies)
+            t = self.transport
+            if t is None or t.is_closing():
+                return
+            t.write(replies[0].encode() if len(replies) == 1 else b"".join([f.encode() for f in replies]))
+            if t.get_write_buffer_size() > self.server.limits.output_hard:
+                self._close_unread(t)
 
     def connection_lost(self, exc: Exception | None) -> None:
         srv = self.server
@@ -120,51 +127,44 @@ class TcpConnection(asyncio.Protocol):
     def buffered(self) -> int:
         """Bytes waiting to go out to this client (ours and the transport's)."""
         t = self.transport
-        return self._out_size + (t.get_write_buffer_size() if t is not None else 0)
+        return sum(len(f.payload) + 8 for f in self._out) + (t.get_write_buffer_size() if t is not None else 0)
 
     def deliver(self, frame: Frame) -> None:
-        """Deferred frame from the device (final reply, auto-update). Called during poll()."""
-        t = self.transport
-        if t is None or t.is_closing():
-            return
-        if droppable(frame.command_id) and self.buffered > self.server.limits.output_soft:
-            self.dropped += 1
-            return
-        raw = frame.encode()
-        self._out.append(raw)
-        self._out_size += len(raw)
-        sched = self.server.runner.scheduler
-        if sched is not None and sched.in_round:
-            sched.mark_dirty(self)
-        else:
-            self.flush()
+        """Deferred frame from the device (final reply, auto-update). Called during poll().
+
+        Kept as a frame until the scheduler round ends (one write per connection and round); the
+        soft-limit drop is decided then, on what the transport still holds.
+        """
+        out = self._out
+        out.append(frame)
+        if len(out) == 1:
+            sched = self._sched or self.server.runner.scheduler
+            if sched is not None and sched.in_round:
+                sched.mark_dirty(self)
+            else:
+                self.flush()
 
     def flush(self) -> None:
-        t = self.transport
-        if not self._out:
+        out = self._out
+        if not out:
             return
-        data = b"".join(self._out)
-        self._out.clear()
-        self._out_size = 0
-        if t is None or t.is_closing():
-            return
-        t.write(data)
-        self._check_hard_limit(t)
-
-    def _write_now(self, replies: list[Frame]) -> None:
+        self._out = []
         t = self.transport
         if t is None or t.is_closing():
             return
-        if len(replies) == 1:
-            t.write(replies[0].encode())
-        else:
-            t.write(b"".join(f.encode() for f in replies))
-        self._check_hard_limit(t)
-
-    def _check_hard_limit(self, t: asyncio.Transport) -> None:
+        if t.get_write_buffer_size() > self._soft:
+            kept = [f for f in out if not droppable(f.command_id)]  # final replies are never lost
+            self.dropped += len(out) - len(kept)
+            if not kept:
+                return
+            out = kept
+        t.write(out[0].encode() if len(out) == 1 else b"".join([f.encode() for f in out]))
         if t.get_write_buffer_size() > self.server.limits.output_hard:
-            log.warning("tcp %s: %d bytes unread, connection closed", self.peer, t.get_write_buffer_size())
-            t.abort()
+            self._close_unread(t)
+
+    def _close_unread(self, t: asyncio.Transport) -> None:
+        log.warning("tcp %s: %d bytes unread, connection closed", self.peer, t.get_write_buffer_size())
+        t.abort()
 
 
 class TcpServer:

@@ -51,6 +51,7 @@ class UdpServer(asyncio.DatagramProtocol):
         self.session: Any = None
         self.client: Address | None = None
         """Where replies and auto-updates go (the last sender, on ``reply_port``)."""
+        self._last_addr: Any = None
         self.port = 0
         self.dropped = 0
         self.datagrams = 0
@@ -76,16 +77,19 @@ class UdpServer(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         self.datagrams += 1
-        host, port = str(addr[0]), int(addr[1])
-        self.client = (host, port if self.reply_port is None else self.reply_port)
+        if addr != self._last_addr:  # a polling client sends from one address: convert it once
+            self._last_addr = addr
+            port = int(addr[1])
+            self.client = (str(addr[0]), port if self.reply_port is None else self.reply_port)
         replies = self.gripper.handle_datagram(self.session, data)
         if replies and log.isEnabledFor(logging.INFO):
-            log_replies(log, f"udp {host}:{port}", replies)
+            log_replies(log, f"udp {addr[0]}:{addr[1]}", replies)
         t = self.transport
         if t is None:
             return
+        client = self.client
         for frame in replies:
-            t.sendto(frame.encode(), self.client)
+            t.sendto(frame.encode(), client)
 
     def error_received(self, exc: Exception) -> None:
         # ICMP port unreachable from a client that went away: nothing to do
