@@ -432,24 +432,30 @@ class Gripper:
         if self.on_connection_lost is not None:
             self.on_connection_lost(exc)
 
-    def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True) -> None:
+    def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True, deadline: float = 0.0) -> None:
         """Block until ``w`` is done or ``timeout`` s passed (then, with ``abandon``, fail it with
-        TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does."""
+        TimeoutError and leave a ghost for its late reply). Reads the socket itself when nobody else does.
+        ``deadline``: the monotonic time the wait ends, when it began earlier."""
+        if not deadline:
+            deadline = time.monotonic() + timeout
         with self._lock:
             if w.done:
                 return
-            if self._reading and not self._sleep(w, time.monotonic() + timeout, timeout, abandon):
+            if self._reading and not self._sleep(w, deadline, timeout, abandon):
                 return
             self._reading = True
-        self._read(w, timeout, abandon)
+        self._read(w, timeout, abandon, True, deadline)
 
-    def _read(self, w: Waiter, timeout: float, abandon: bool, logged: bool = True) -> None:
+    def _read(self, w: Waiter, timeout: float, abandon: bool, logged: bool = True, deadline: float = 0.0) -> None:
         """Read the transport until ``w`` is done or ``timeout`` s passed; the caller has set
         ``_reading``. The reading is given up in the same critical section that completes ``w``.
         ``logged``: False when the caller found the communication log idle (then a whole frame skips it)."""
-        deadline = time.monotonic() + timeout
+        if deadline:
+            remaining = deadline - time.monotonic()
+        else:
+            deadline = time.monotonic() + timeout
+            remaining = timeout
         lock = self._lock
-        remaining = timeout
         try:
             while True:
                 t = self._transport
@@ -610,11 +616,72 @@ class Gripper:
         return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     def _run(self, call: Call[T], timeout: float | None = None) -> T:
-        frame, _ = self._exchange(call, timeout)
+        t = self._transport
+        if (t is None or call.pending or self._partial or (call.auto_read and self._subs)
+                or self._comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG)):
+            frame, _ = self._exchange(call, timeout)
+        else:
+            frame = self._exchange_immediate(t, call, self.timeout if timeout is None else timeout)
         p = frame.payload
         if len(p) >= 2 and p[0] == 0 and p[1] == 0:  # E_SUCCESS
             return decode_success(call, frame)
         return self._result(call, frame)
+
+    def _exchange_immediate(self, t: SyncTransport, call: Call[Any], timeout: float) -> Frame:
+        """:meth:`_exchange` flattened for the common call: an immediate command, no communication
+        log, no partial frame buffered. When this thread may read and the first read holds the
+        reply, it is one request, one read and two lock rounds; anything else continues in :meth:`_read`
+        / :meth:`_wait_for` with the same waiter and deadline."""
+        deadline = time.monotonic() + timeout
+        cid = call.command_id
+        w = Waiter(cid)
+        lock = self._lock
+        reader = False
+        try:
+            with self._send_lock:  # registered in the order of sending (FIFO per ID)
+                with lock:
+                    self._demux.expect(w)
+                    reader = not self._reading
+                    if reader:
+                        self._reading = True
+                t.send(call.wire)
+            if reader:
+                data = t.recv(timeout)
+                if data:
+                    with lock:
+                        frame = None if self._partial else \
+                            frame_from(data, self._parser.verify_checksum, self._parser.max_payload)
+                        if frame is None:
+                            self._feed(data)
+                        else:
+                            self._demux.feed(frame)
+                        if w.done:  # the reply (or a bad-CRC failure): give the reading up
+                            self._reading = False
+                            reader = False
+                            if self._sleepers:
+                                self._cv.notify_all()
+        except OSError as exc:
+            if reader:
+                with lock:
+                    self._reading = False
+                    self._wake_sleepers()
+            self._lost(exc)
+            reader = False
+        except BaseException:
+            if reader:
+                with lock:
+                    self._reading = False
+                    self._wake_sleepers()
+            raise
+        if not w.done:
+            if reader:
+                self._read(w, timeout, True, True, deadline)
+            else:
+                self._wait_for(w, timeout, True, deadline)
+        if w.error is not None:
+            raise w.error
+        assert w.frame is not None
+        return w.frame
 
     def _result(self, call: Call[T], frame: Frame) -> T:
         if is_success(frame):
