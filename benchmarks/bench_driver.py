@@ -1,6 +1,6 @@
 """Driver round trips against `wsg sim` on loopback, each beside a raw client of the same kind.
 
-    .venv/bin/python benchmarks/bench_driver.py [--seconds 1.0] [--rounds 5] [--uvloop]
+    .venv/bin/python benchmarks/bench_driver.py [--seconds 0.5] [--rounds 10] [--uvloop]
 
 Prints, for Get Gripper State (41h):
 - blocking: a raw socket client (sendall + recv of the same bytes) vs ``Gripper.gripper_state()``;
@@ -8,7 +8,9 @@ Prints, for Get Gripper State (41h):
 round trips/s and p50/p99 latency, the ratio driver/raw (target <= 1.3x), and the added latency of a
 command while 4 auto-update streams (40h, 41h, 43h, 45h) run at 10 ms. Rounds alternate between
 the clients (each round runs every client once, in the same order, against the same server); the
-best round and the median round of each are reported (the machine is shared), and the ratios from both.
+best round and the median round of each are reported (the machine is shared), the ratios from both,
+and the median of the per-round ratios (a driver compared with the raw client of the same round,
+seconds apart, so slow drifts of the machine's load cancel out).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import argparse
 import asyncio
 import os
 import socket
+import statistics
 import subprocess
 import sys
 import time
@@ -183,8 +186,8 @@ def median(results: list[Result]) -> Result:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--seconds", type=float, default=1.0)
-    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--seconds", type=float, default=0.5)
+    ap.add_argument("--rounds", type=int, default=10)
     ap.add_argument("--uvloop", action="store_true", help="run the asyncio clients on uvloop")
     ap.add_argument("--sim-uvloop", action="store_true", help="run wsg sim on uvloop (default: stock asyncio)")
     args = ap.parse_args()
@@ -223,6 +226,12 @@ def main() -> None:
             print(f"added latency with 4 streams @10 ms: blocking p50 {sb.p50 - db.p50:+.1f} µs, "
                   f"p99 {sb.p99 - db.p99:+.1f} µs; asyncio p50 {sa.p50 - da.p50:+.1f} µs, "
                   f"p99 {sa.p99 - da.p99:+.1f} µs")
+        print("## median of the per-round ratios")
+        for kind, raw_name, drv_name in (("blocking", "raw blocking socket", "Gripper.gripper_state()"),
+                                         ("asyncio ", "raw asyncio BufferedProtocol", "AsyncGripper.gripper_state()")):
+            rate = statistics.median(r.rate / d.rate for r, d in zip(rows[raw_name], rows[drv_name], strict=True))
+            p50 = statistics.median(d.p50 / r.p50 for r, d in zip(rows[raw_name], rows[drv_name], strict=True))
+            print(f"{kind}: raw/driver rate ratio {rate:.2f}x, p50 ratio {p50:.2f}x (target <= 1.3x)")
     finally:
         proc.terminate()
         proc.wait(5)

@@ -30,7 +30,7 @@ from ..protocol import (
 from . import calls
 from .aio_transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
 from .calls import Call
-from .commlog import RX, TX, CommHook, CommLog
+from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
@@ -444,8 +444,9 @@ class AsyncGripper:
         if not parser.buffered:
             frame = frame_from(bytes(data), parser.verify_checksum, parser.max_payload)
             if frame is not None:
-                if self._comm.active:
-                    self._comm.frame(RX, frame)
+                comm = self._comm
+                if comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG):
+                    comm.frame(RX, frame)
                 self._demux.feed(frame)
                 return
         for ev in parser.feed(data):
@@ -513,8 +514,9 @@ class AsyncGripper:
         wire = call.wire
         if call.auto_read and self._subs:
             wire = self._read_wire(call)
-        if self._comm.active:
-            self._comm.frame(TX, Frame(cid, wire[6:-2]))
+        comm = self._comm
+        if comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG):
+            comm.frame(TX, Frame(cid, wire[6:-2]))
         self._time(w, loop, self.timeout if timeout is None else timeout)
         t.write(wire)
         return w, final
@@ -534,7 +536,8 @@ class AsyncGripper:
     # -- timeouts
     def _time(self, w: _AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
         """Fail ``w`` with TimeoutError if it is not done ``timeout`` s from now."""
-        w.deadline = d = loop.time() + timeout
+        # time.monotonic() is the loop's clock (asyncio's and uvloop's), without a method call
+        w.deadline = d = time.monotonic() + timeout
         w.timeout = timeout
         timed = self._timed
         if len(timed) >= _COMPACT_AT:
@@ -553,7 +556,7 @@ class AsyncGripper:
         self._timer = None
         loop = self._loop
         assert loop is not None
-        now = loop.time()
+        now = time.monotonic()
         keep: list[_AWaiter] = []
         for w in self._timed:
             if w.done:
