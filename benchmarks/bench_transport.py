@@ -8,10 +8,14 @@
    |gap - 10 ms| per stream (p50/p99/max) and the server's CPU, beside a bare asyncio server writing
    the same frames on the same number of connections with one `asyncio.sleep` loop per stream.
 
+3. Capacity: the largest stream count (4 streams per connection) that still holds p99 <= 2 ms, found by
+   bisection for `wsg sim` and for the bare loop, and their ratio (target >= 0.7).
+
 Servers run in their own processes (the client does not share their GIL). Both are run on stock
 asyncio and, when installed, on uvloop.
 
-    .venv/bin/python benchmarks/bench_transport.py [--counts 1,50,200] [--seconds 3] [--loops asyncio,uvloop]
+    .venv/bin/python benchmarks/bench_transport.py [--parts 1,2,3] [--counts 1,50,200] [--seconds 3]
+        [--loops asyncio,uvloop] [--search-seconds 2]
 """
 
 from __future__ import annotations
@@ -242,11 +246,13 @@ def stats(errors: list[float]) -> str:
     return f"p50 {e[len(e) // 2]:5.2f} p99 {e[int(len(e) * 0.99)]:6.2f} max {e[-1]:6.1f} ms"
 
 
-def bench_timing(loop: str, count: int, seconds: float) -> None:
+def bench_timing(loop: str, count: int, seconds: float, sides: tuple[str, ...] = ("wsg sim", "bare"),
+                 quiet: bool = False) -> dict[str, tuple[str, float, float, float]]:
+    """Per side: (stats line, CPU %, packets/s, p99 ms)."""
     warmup = 0.5
     base = free_base(count + 1)
     results = {}
-    for name in ("wsg sim", "bare"):
+    for name in sides:
         if name == "wsg sim":
             proc = start(sim_cmd(loop, base, count, udp=False), f"gripper {count - 1}: TCP")
             socks = [socket.create_connection(("127.0.0.1", base + i)) for i in range(count)]
@@ -265,9 +271,53 @@ def bench_timing(loop: str, count: int, seconds: float) -> None:
             s.close()
         stop(proc)
         rate = len(errors) / seconds
-        results[name] = (stats(errors), cpu, rate)
-    for name, (st, cpu, rate) in results.items():
-        print(f"  {loop:8s} {count:4d} x 4 streams  {name:8s} {st}  CPU {cpu:5.1f} %  {rate:8.0f} packets/s")
+        expected = count * 4 * 100  # packets/s at 10 ms
+        p99 = sorted(errors)[int(len(errors) * 0.99)] if errors else float("inf")
+        if rate < 0.95 * expected:
+            p99 = float("inf")  # falling behind (packets skipped) counts as failing
+        results[name] = (stats(errors), cpu, rate, p99)
+    if not quiet:
+        for name, (st, cpu, rate, _) in results.items():
+            print(f"  {loop:8s} {count:4d} x 4 streams  {name:8s} {st}  CPU {cpu:5.1f} %  {rate:8.0f} packets/s")
+    return results
+
+
+def capacity(loop: str, side: str, seconds: float, start: int = 25, top: int = 1000, limit_ms: float = 2.0) -> int:
+    """Largest connection count (x 4 streams) holding p99 <= limit_ms: doubling or halving from
+    ``start`` to bracket it, then bisection to within ~1/8."""
+    def ok(n: int) -> bool:
+        r = bench_timing(loop, n, seconds, (side,), quiet=True)[side]
+        print(f"    {loop:8s} {side:8s} {n:4d} x 4 = {4 * n:5d} streams: {r[0]}  CPU {r[1]:5.1f} %  "
+              f"{'ok' if r[3] <= limit_ms else 'over'}", flush=True)
+        return r[3] <= limit_ms
+
+    if ok(start):
+        lo, hi = start, start * 2
+        while hi <= top and ok(hi):
+            lo, hi = hi, hi * 2
+        if hi > top:
+            return lo
+    else:
+        lo, hi = start // 2, start
+        while lo >= 1 and not ok(lo):
+            lo, hi = lo // 2, lo
+        if lo < 1:
+            return 0
+    while hi - lo > max(lo // 8, 1):
+        mid = (lo + hi) // 2
+        if ok(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def bench_capacity(loop: str, seconds: float) -> None:
+    sim = capacity(loop, "wsg sim", seconds)
+    bare = capacity(loop, "bare", seconds)
+    ratio = sim / bare if bare else float("inf")
+    print(f"  {loop:8s} largest stream count with p99 <= 2 ms: wsg sim {4 * sim}, bare {4 * bare}, "
+          f"ratio {ratio:.2f} (target >= 0.7)")
 
 
 def main() -> None:
@@ -275,6 +325,8 @@ def main() -> None:
     ap.add_argument("--counts", default="1,50,200", help="gripper counts for the timing test")
     ap.add_argument("--seconds", type=float, default=3.0, help="measuring time per timing run")
     ap.add_argument("--round-trips", type=int, default=20000)
+    ap.add_argument("--parts", default="1,2,3", help="1 round trips, 2 timing, 3 capacity search")
+    ap.add_argument("--search-seconds", type=float, default=2.0, help="measuring time per search probe")
     loops = ["asyncio"]
     try:
         import uvloop  # noqa: F401
@@ -286,13 +338,20 @@ def main() -> None:
     args = ap.parse_args()
     load = os.getloadavg()[0]
     print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start, Python {sys.version.split()[0]}")
-    print("1. round trips of a 41h request (blocking raw-socket client)")
-    for loop in args.loops.split(","):
-        bench_round_trips(loop, args.round_trips)
-    print("2. auto-update interval error seen by a receiving client (10 ms period)")
-    for loop in args.loops.split(","):
-        for count in (int(c) for c in args.counts.split(",")):
-            bench_timing(loop, count, args.seconds)
+    parts = args.parts.split(",")
+    if "1" in parts:
+        print("1. round trips of a 41h request (blocking raw-socket client)")
+        for loop in args.loops.split(","):
+            bench_round_trips(loop, args.round_trips)
+    if "2" in parts:
+        print("2. auto-update interval error seen by a receiving client (10 ms period)")
+        for loop in args.loops.split(","):
+            for count in (int(c) for c in args.counts.split(",")):
+                bench_timing(loop, count, args.seconds)
+    if "3" in parts:
+        print("3. largest stream count holding p99 <= 2 ms (bisection; 10 ms period, 4 streams per connection)")
+        for loop in args.loops.split(","):
+            bench_capacity(loop, args.search_seconds)
     print(f"load average {os.getloadavg()[0]:.2f} at the end")
 
 
