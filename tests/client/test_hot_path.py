@@ -163,3 +163,59 @@ def test_threads_share_one_gripper_and_get_their_own_replies(sim: object) -> Non
         assert not any(t.is_alive() for t in threads)
         assert g.demux.outstanding() == 0
     assert not errors, errors[:3]
+
+
+# ---------------------------------------------------------------- the waiter-less call's fallbacks
+def test_blocking_call_fallbacks_split_other_id_first_two_in_one_segment() -> None:
+    loop_reply = Frame.reply(Command.LOOP, OK, b"zz").encode()
+    n = [0]
+
+    def handler(conn: RawConn, f: Frame) -> None:
+        if f.command_id != Command.GET_GRIPPER_STATE:
+            echo_handler(conn, f)
+            return
+        n[0] += 1
+        reply = state_reply(GripperState.HOLDING if n[0] != 3 else GripperState.NO_PART)
+        if n[0] == 1:  # split in two segments: the first read is a partial frame
+            conn.send(reply[:4])
+            time.sleep(0.02)
+            conn.send(reply[4:])
+        elif n[0] == 2:  # a frame of another ID first (unsolicited), then the reply
+            conn.send(loop_reply)
+            time.sleep(0.02)
+            conn.send(reply)
+        elif n[0] == 3:  # the reply and an unsolicited frame in one segment
+            conn.send(reply + loop_reply)
+        else:
+            conn.send(reply)
+
+    with RawServer(handler) as srv, Gripper(srv.url, timeout=1) as g:
+        assert g.gripper_state() == GripperState.HOLDING
+        assert g.gripper_state() == GripperState.HOLDING
+        assert g.demux.unsolicited == 1
+        assert g.gripper_state() == GripperState.NO_PART
+        assert g.gripper_state() == GripperState.HOLDING
+        assert g.demux.unsolicited == 2
+        assert g.demux.outstanding() == 0
+
+
+def test_blocking_call_timeout_without_waiter_leaves_a_ghost() -> None:
+    n = [0]
+
+    def handler(conn: RawConn, f: Frame) -> None:
+        if f.command_id == Command.GET_GRIPPER_STATE:
+            n[0] += 1
+            if n[0] == 1:
+                threading.Timer(0.25, conn.send, args=(state_reply(GripperState.NO_PART),)).start()
+            else:
+                conn.send(state_reply(GripperState.HOLDING))
+        else:
+            echo_handler(conn, f)
+
+    with RawServer(handler) as srv, Gripper(srv.url, timeout=0.1) as g:
+        assert g.demux.alone(Command.GET_GRIPPER_STATE)  # so the first call takes the waiter-less path
+        with pytest.raises(TimeoutError):
+            g.gripper_state()
+        time.sleep(0.3)
+        assert g.gripper_state() == GripperState.HOLDING  # the late NO_PART went to the ghost
+        assert g.demux.late == 1

@@ -100,6 +100,18 @@ class Demux:
             q = self.replies[waiter.command_id] = deque()
         q.append(waiter)
 
+    def expect_first(self, waiter: Waiter) -> None:
+        """Register a waiter whose request went out before those of every waiter queued for its ID
+        (a call that waited without a waiter while it was alone, see ``Gripper._exchange_immediate``)."""
+        q = self.replies.get(waiter.command_id)
+        if q is None:
+            q = self.replies[waiter.command_id] = deque()
+        q.appendleft(waiter)
+
+    def alone(self, command_id: int) -> bool:
+        """Nothing expected on this ID: no reply (nor ghost), no motion final, no stream."""
+        return not self.replies.get(command_id) and not self.finals.get(command_id) and command_id not in self.streams
+
     def abandon(self, waiter: Waiter) -> None:
         """The call gave up waiting: keep a ghost for its late reply (if still queued)."""
         waiter.ghost_until = self.clock() + GHOST_TTL

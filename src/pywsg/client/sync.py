@@ -629,50 +629,68 @@ class Gripper:
 
     def _exchange_immediate(self, t: SyncTransport, call: Call[Any], timeout: float) -> Frame:
         """:meth:`_exchange` flattened for the common call: an immediate command, no communication
-        log, no partial frame buffered. When this thread may read and the first read holds the
-        reply, it is one request, one read and two lock rounds; anything else continues in :meth:`_read`
-        / :meth:`_wait_for` with the same waiter and deadline."""
+        log, no partial frame buffered.
+
+        When nobody else reads and nothing else is expected on this ID, the call waits without a
+        :class:`Waiter`: the first frame of its ID to arrive is its reply (calls of other threads
+        on the same ID were sent later and queue behind it). Anything else - another frame, several
+        frames, a bad CRC, a timeout, an error - first registers the waiter at the head of its ID's
+        queue (:meth:`Demux.expect_first`), then continues the general way with the same deadline.
+        """
         deadline = time.monotonic() + timeout
         cid = call.command_id
-        w = Waiter(cid)
+        demux = self._demux
         lock = self._lock
+        w: Waiter | None = None
         reader = False
         try:
             with self._send_lock:  # registered in the order of sending (FIFO per ID)
                 with lock:
-                    self._demux.expect(w)
                     reader = not self._reading
                     if reader:
                         self._reading = True
+                    if not reader or not demux.alone(cid):
+                        w = Waiter(cid)
+                        demux.expect(w)
                 t.send(call.wire)
             if reader:
                 data = t.recv(timeout)
-                if data:
-                    with lock:
-                        frame = None if self._partial else \
-                            frame_from(data, self._parser.verify_checksum, self._parser.max_payload)
-                        if frame is None:
-                            self._feed(data)
-                        else:
-                            self._demux.feed(frame)
+                with lock:
+                    if w is None:
+                        if data and not self._partial:
+                            frame = frame_from(data, self._parser.verify_checksum, self._parser.max_payload)
+                            if frame is not None and frame.command_id == cid:  # the reply
+                                self._reading = False
+                                if self._sleepers:
+                                    self._cv.notify_all()
+                                return frame
+                        w = Waiter(cid)
+                        demux.expect_first(w)
+                    if data:
+                        self._feed(data)
                         if w.done:  # the reply (or a bad-CRC failure): give the reading up
                             self._reading = False
                             reader = False
-                            if self._sleepers:
-                                self._cv.notify_all()
+                            self._wake_sleepers()
         except OSError as exc:
-            if reader:
-                with lock:
+            with lock:
+                if w is None:
+                    w = Waiter(cid)
+                    demux.expect_first(w)
+                if reader:
                     self._reading = False
                     self._wake_sleepers()
             self._lost(exc)
             reader = False
         except BaseException:
-            if reader:
-                with lock:
+            with lock:
+                if w is None:  # stays queued: it swallows the reply when it comes
+                    demux.expect_first(Waiter(cid))
+                if reader:
                     self._reading = False
                     self._wake_sleepers()
             raise
+        assert w is not None
         if not w.done:
             if reader:
                 self._read(w, timeout, True, True, deadline)
