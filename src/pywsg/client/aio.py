@@ -297,6 +297,7 @@ class AsyncGripper:
         self._timed: list[_AWaiter] = []
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = 0.0
+        self._compact_at = _COMPACT_AT
         self.on_reconnect: Callable[[SystemFlag], None] | None = None
         """Called with the system flags found after every reconnection."""
         self.on_connection_lost: Callable[[BaseException | None], None] | None = None
@@ -517,7 +518,17 @@ class AsyncGripper:
         comm = self._comm
         if comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG):
             comm.frame(TX, Frame(cid, wire[6:-2]))
-        self._time(w, loop, self.timeout if timeout is None else timeout)
+        # self._time(w, loop, timeout) inlined: this runs for every request
+        if timeout is None:
+            timeout = self.timeout
+        w.deadline = d = time.monotonic() + timeout
+        w.timeout = timeout
+        timed = self._timed
+        if len(timed) >= self._compact_at:
+            self._compact()
+        timed.append(w)
+        if self._timer is None or d < self._timer_at:
+            self._arm(loop, d)
         t.write(wire)
         return w, final
 
@@ -540,11 +551,17 @@ class AsyncGripper:
         w.deadline = d = time.monotonic() + timeout
         w.timeout = timeout
         timed = self._timed
-        if len(timed) >= _COMPACT_AT:
-            timed[:] = [x for x in timed if not x.done]
+        if len(timed) >= self._compact_at:
+            self._compact()
         timed.append(w)
         if self._timer is None or d < self._timer_at:
             self._arm(loop, d)
+
+    def _compact(self) -> None:
+        """Sweep finished waiters out of ``_timed`` (amortised: the threshold follows the live count)."""
+        timed = self._timed
+        timed[:] = [x for x in timed if not x.done]
+        self._compact_at = max(_COMPACT_AT, 2 * len(timed))
 
     def _arm(self, loop: asyncio.AbstractEventLoop, when: float) -> None:
         if self._timer is not None:
