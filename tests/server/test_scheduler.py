@@ -188,3 +188,25 @@ async def test_timer_is_released_when_nothing_is_due() -> None:
     await asyncio.sleep(0)
     assert sched.pending == 0 and not sched.armed
     assert timer_fds() == 0  # the timer fd is closed with the last entry
+
+
+@pytest.mark.realtime
+def test_timer_works_on_uvloop() -> None:
+    uvloop = pytest.importorskip("uvloop")
+
+    async def run() -> tuple[str, list[float]]:
+        async with SimServer(tcp_port=None, udp_port=None) as sim:
+            assert sim.scheduler is not None
+            sg = sim.grippers[0]
+            stamps: list[float] = []
+            s = sg.gripper.open_session("test", deliver=lambda f: stamps.append(time.monotonic()))
+            sg.gripper.handle_frame(s, Frame(0x43, CATALOG[0x43].encode_request(flags=1, period_ms=10)))
+            sg.runner.wake()
+            await asyncio.sleep(0.5)
+            return sim.scheduler.timer, stamps
+
+    timer, stamps = uvloop.run(run())
+    assert timer == ("timerfd" if timerfd_available() else "thread")
+    assert len(stamps) >= 40
+    mean_period = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
+    assert abs(mean_period - 0.010) < 0.0008, mean_period
