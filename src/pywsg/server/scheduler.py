@@ -38,6 +38,12 @@ log = logging.getLogger(__name__)
 MAX_ROUND = 0.004
 """Longest time (s) one scheduler round may take before it lets the loop serve sockets."""
 
+MIN_ROUND_GAP = 0.0002
+"""Shortest time (s) from the end of one round to the next wakeup. Streams of many grippers fall due
+at many slightly different times; without a gap each would cost a wakeup of its own (epoll return,
+timer read and re-arm). Entries due within the gap are served together, at most this much later —
+a delay that is nearly the same from one packet of a stream to the next, so intervals keep."""
+
 
 class Flushable(Protocol):
     """A connection that collects frames during a scheduler round and writes them after it."""
@@ -229,6 +235,7 @@ class Scheduler:
         self._heap: list[tuple[float, int, DeviceRunner]] = []
         self._seq = itertools.count()
         self._armed_for = math.inf
+        self._not_before = 0.0
         self._dirty: dict[int, Flushable] = {}
         self.in_round = False
         self.rounds = 0
@@ -269,6 +276,8 @@ class Scheduler:
             self.waker.disarm()  # also after it fired: the timerfd is closed with the last entry
             return
         when = heap[0][0]
+        if when < self._not_before:
+            when = self._not_before
         if when != self._armed_for:
             self._armed_for = when
             self.waker.arm(when)
@@ -315,6 +324,7 @@ class Scheduler:
         finally:
             self.in_round = False
             self.flush()
+            self._not_before = clock() + MIN_ROUND_GAP
             self._arm()
 
     def close(self) -> None:
