@@ -9,6 +9,7 @@ import pytest
 
 from pywsg.device import PROFILES, Settings, SettingsError, VirtualGripper, decode_fw_version, get_profile
 from pywsg.device.profiles import ASSUMED, DATA_SHEET
+from pywsg.protocol import GripperState
 
 from .devrig import make_rig
 
@@ -93,3 +94,21 @@ def test_profiles_table_names_sources() -> None:
     assert VirtualGripper().profile.key == "wsg50"
     with pytest.raises(ValueError, match="unknown device model"):
         get_profile("wsg99")
+
+
+def test_auto_homing_at_power_up() -> None:
+    r = make_rig(settings=Settings(auto_homing=True, homing_direction=2))
+    assert r.g.snapshot().gripper_state == GripperState.POSITIONING  # homing runs without a command
+    r.run(5)
+    snap = r.g.snapshot()
+    assert snap.referenced and snap.gripper_state == GripperState.IDLE
+    assert abs(snap.width) < 1e-6  # negative direction: closed end stop
+    assert any("auto-homing" in e.message for e in r.g.log)
+    # a restart homes again; without the setting nothing moves
+    r.g.restart()
+    assert r.g.snapshot().gripper_state == GripperState.POSITIONING
+    plain = make_rig()
+    plain.run(5)
+    assert not plain.g.snapshot().referenced
+    with pytest.raises(SettingsError, match="auto_homing"):
+        Settings(auto_homing="yes")  # type: ignore[arg-type]

@@ -202,6 +202,12 @@ def test_settings_apply_live_and_persist(sim: LiveSim, api: httpx.Client) -> Non
     assert saved["clamping_travel"] == 7.5 and saved["homing_direction"] == 2
     r = api.post("/api/settings", json={"clamping_travel": 5.0, "homing_direction": 1})
     assert r.status_code == 200
+    # Motion Configuration: auto-homing on start, persisted
+    assert groups["auto_homing"] == "motion"
+    assert api.post("/api/settings", json={"auto_homing": True}).status_code == 200
+    assert json.loads(sim.settings_path.read_text())["auto_homing"] is True
+    assert api.post("/api/settings", json={"auto_homing": "yes"}).status_code == 422
+    assert api.post("/api/settings", json={"auto_homing": False}).status_code == 200
 
 
 @pytest.mark.parametrize(("body", "field", "words"), [

@@ -266,6 +266,16 @@ class VirtualGripper:
             self.load_plugin(settings.script)
         self.log.add(now, LogLevel.INFO, f"{p.name} started (firmware {_fw(p.fw_version)}, SN {self.serial_number})")
         self._changed()
+        if settings.auto_homing:
+            self._auto_home()
+
+    def _auto_home(self) -> None:
+        """Auto-homing at power-up: an ordinary 20h from an internal session, so every rule holds."""
+        startup = next((s for s in self._sessions if s.kind == "startup"), None)
+        if startup is None:
+            startup = self.open_session("startup", peer="auto-homing")
+        self.log.add(self.clock(), LogLevel.INFO, "auto-homing at start")
+        self.handle_frame(startup, Frame(Command.HOMING, b"\x00"))
 
     def apply_settings(self, settings: Settings) -> None:
         """Take new settings. Raises ValueError naming the field if invalid.

@@ -31,6 +31,8 @@ class Settings:
     - ``crc_check``: evaluate the CRC of received frames (1.4.1).
     - ``fast_stop_on_disconnect``: FAST STOP when a TCP client closes without 07h (1.4.2).
     - ``homing_direction``: default homing direction, 1 positive (opening) or 2 negative (closing).
+    - ``auto_homing``: home in the default direction at power-up (fieldbus manual §5.4), so the
+      gripper is referenced without a Homing command.
     - ``clamping_travel``: mm the fingers may move beyond the nominal part width while gripping.
     - ``default_acceleration``: mm/s² at startup (None: the model's default).
     - ``default_force_limit``: N at startup (None: the model's nominal force).
@@ -43,6 +45,7 @@ class Settings:
     crc_check: bool = True
     fast_stop_on_disconnect: bool = True
     homing_direction: int = 1
+    auto_homing: bool = False
     clamping_travel: float = 5.0
     default_acceleration: float | None = None
     default_force_limit: float | None = None
@@ -57,7 +60,7 @@ class Settings:
 
     def validate(self) -> None:
         """Raise :class:`SettingsError` (a ValueError) naming the first invalid field."""
-        for name in ("crc_check", "fast_stop_on_disconnect"):
+        for name in ("crc_check", "fast_stop_on_disconnect", "auto_homing"):
             if not isinstance(getattr(self, name), bool):
                 raise SettingsError(f"{name}: must be true or false")
         if not isinstance(self.model, str) or self.model not in PROFILES:
