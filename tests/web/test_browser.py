@@ -96,8 +96,10 @@ def test_home_from_the_control_panel_and_watch_the_width_live(sim: LiveSim, page
     # while homing the position is unknown (as on the real panel) but the fingers' speed shows live
     assert {s[0] for s in during} == {"[n/a]"}
     assert any(float(s[1].split()[0]) > 1 for s in during), during
-    assert "E_CMD_PENDING" in page.inner_text("#form-home output")
+    page.wait_for_function("document.querySelector('#results').innerText.includes('HOMING E_CMD_PENDING')")
     page.wait_for_function("document.querySelector('#results').innerText.includes('HOMING E_SUCCESS')")
+    # the final reply has replaced E_CMD_PENDING beside the form
+    page.wait_for_function("document.querySelector('#form-home output').innerText == 'E_SUCCESS'")
     assert page.locator("#flag-list li[data-flag=SF_REFERENCED]").get_attribute("class") == "on"
     # now referenced: a move shows the width changing live, step by step
     page.fill("#form-move input[name=width]", "40")
