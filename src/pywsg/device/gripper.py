@@ -1011,28 +1011,23 @@ class VirtualGripper:
         self._notify()
 
     def set_power_fault(self, on: bool) -> None:
-        now = self.clock()
-        self._advance(now)
-        if on == self.power_fault:
-            return
-        self.power_fault = on
-        if on:
-            self._fast_stop(now, "power supply out of range")
-        else:
-            self.log.add(now, LogLevel.INFO, "power supply back in range")
-        self._changed()
-        self._notify()
+        """SF_POWER_FAULT: raising it raises FAST STOP; 24h is refused while it persists."""
+        self._set_fault("power_fault", on, "power supply out of range", "power supply back in range")
 
     def set_current_fault(self, on: bool) -> None:
+        """SF_CURR_FAULT: raising it raises FAST STOP; 24h is refused while it persists."""
+        self._set_fault("current_fault", on, "motor current fault", "motor recovered")
+
+    def _set_fault(self, attr: str, on: bool, raised: str, cleared: str) -> None:
         now = self.clock()
         self._advance(now)
-        if on == self.current_fault:
+        if on == getattr(self, attr):
             return
-        self.current_fault = on
+        setattr(self, attr, on)
         if on:
-            self._fast_stop(now, "motor current fault")
+            self._fast_stop(now, raised)
         else:
-            self.log.add(now, LogLevel.INFO, "motor recovered")
+            self.log.add(now, LogLevel.INFO, cleared)
         self._changed()
         self._notify()
 
