@@ -29,6 +29,7 @@ from ..protocol import (
     FrameTooLarge,
     GripperState,
     HomingDirection,
+    ParseError,
     PrepositionFlag,
     Status,
     SystemFlag,
@@ -377,17 +378,7 @@ class VirtualGripper:
         if (len(events) == 1 and parser.verify_checksum and not parser.buffered
                 and type(events[0]) is Frame and len(data) == len(events[0].payload) + 8):
             self._remember(data, events[0])
-        out: list[Frame] = []
-        for ev in events:
-            if isinstance(ev, Frame):
-                out.extend(self.handle_frame(s, ev))
-            elif isinstance(ev, ChecksumMismatch):
-                out.extend(self._answer_status(s, ev.command_id, S.E_CHECKSUM_ERROR))
-            elif isinstance(ev, FrameTooLarge):
-                known = ev.command_id in CATALOG or ev.command_id in self._plugin_cmds
-                out.extend(self._answer_status(s, ev.command_id,
-                                               S.E_CMD_FORMAT_ERROR if known else S.E_CMD_UNKNOWN))
-        return out
+        return self._answer_events(s, events)
 
     def handle_datagram(self, s: Session, data: bytes) -> list[Frame]:
         """One UDP datagram holds one frame."""
@@ -397,6 +388,12 @@ class VirtualGripper:
         events = parse_datagram(data, self.settings.crc_check, self._max_payload)
         if len(events) == 1 and self.settings.crc_check and type(events[0]) is Frame:
             self._remember(data, events[0])
+        return self._answer_events(s, events)
+
+    def _answer_events(self, s: Session, events: list[Frame | ParseError]) -> list[Frame]:
+        """Replies to parser output: frames are executed, parse errors answered with their status
+        (bad CRC: E_CHECKSUM_ERROR; SIZE too large or a truncated datagram: E_CMD_FORMAT_ERROR, or
+        E_CMD_UNKNOWN for an unknown ID); skipped garbage gets no answer."""
         out: list[Frame] = []
         for ev in events:
             if isinstance(ev, Frame):
