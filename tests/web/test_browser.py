@@ -72,7 +72,10 @@ def _watch(page: Any, until: str, timeout: float = 10.0) -> list[tuple[str, str,
     seen: list[tuple[str, str, str]] = []
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        seen.append((page.inner_text("#g-width"), page.inner_text("#g-speed"), page.inner_text("#g-state")))
+        # one evaluate reads all three in the same JS task: no WebSocket update can land in between
+        w, v, st = page.evaluate(
+            "['#g-width', '#g-speed', '#g-state'].map(id => document.querySelector(id).innerText)")
+        seen.append((w, v, st))
         if seen[-1][0] == until and seen[-1][2] == "IDLE":
             break
         page.wait_for_timeout(40)
