@@ -4,16 +4,15 @@ acceleration 5000 mm/s² (the WSG 50's maximum) and speeds up to 420 mm/s, on th
 
 from __future__ import annotations
 
-import asyncio
-import threading
-from collections.abc import Callable, Coroutine, Iterator
-from concurrent.futures import Future
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
 
 from pywsg.device import Settings, VirtualGripper
-from pywsg.server import SimOptions, SimServer
+
+from ..simthread import SimThread as BaseSimThread
+from ..simthread import started
 
 FAST = 400.0  # mm/s
 
@@ -23,37 +22,13 @@ def fast_factory(model: str, settings: Any, clock: Any) -> VirtualGripper:
     return VirtualGripper(model, settings=s, **({"clock": clock} if clock is not None else {}))
 
 
-class SimThread:
+class SimThread(BaseSimThread):
+    """The sim with fast motion and every interface on (TCP, UDP, pty); settings are not saved."""
+
+    save_on_stop = False
+
     def __init__(self, **options: Any) -> None:
-        opts: dict[str, Any] = {"factory": fast_factory, "tcp_port": 0, "udp_port": 0, "serial": "pty", **options}
-        self.sim = SimServer(SimOptions(**opts))
-        self.loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self.loop.run_forever, daemon=True)
-
-    def start(self) -> SimThread:
-        self._thread.start()
-        self.run(self.sim.start())
-        return self
-
-    def run(self, coro: Coroutine[Any, Any, Any], timeout: float = 10) -> Any:
-        fut: Future[Any] = asyncio.run_coroutine_threadsafe(coro, self.loop)
-        return fut.result(timeout)
-
-    def call(self, fn: Callable[[], Any]) -> Any:
-        """Run ``fn()`` on the sim's loop (device state is touched only there)."""
-
-        async def _do() -> Any:
-            return fn()
-
-        return self.run(_do())
-
-    def stop(self) -> None:
-        try:
-            self.run(self.sim.close(save=False))
-        finally:
-            self.loop.call_soon_threadsafe(self.loop.stop)
-            self._thread.join(5)
-            self.loop.close()
+        super().__init__(**{"factory": fast_factory, "tcp_port": 0, "udp_port": 0, "serial": "pty", **options})
 
     @property
     def device(self) -> VirtualGripper:
@@ -71,16 +46,7 @@ class SimThread:
 
 @pytest.fixture
 def sim_factory() -> Iterator[Callable[..., SimThread]]:
-    started: list[SimThread] = []
-
-    def make(**options: Any) -> SimThread:
-        st = SimThread(**options).start()
-        started.append(st)
-        return st
-
-    yield make
-    for st in started:
-        st.stop()
+    yield from started(SimThread)
 
 
 @pytest.fixture

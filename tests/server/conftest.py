@@ -3,72 +3,23 @@ loop, and small blocking clients (raw sockets, pyserial) as an unmodified WSG cl
 
 from __future__ import annotations
 
-import asyncio
 import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Coroutine, Iterator
-from concurrent.futures import Future
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
 
 from pywsg.protocol import CATALOG, Frame, FrameParser, Kind, Status
-from pywsg.server import SimOptions, SimServer
 
-
-class SimThread:
-    """A SimServer on its own loop in a daemon thread; ``call(coro_fn)`` runs code on that loop."""
-
-    def __init__(self, **options: Any) -> None:
-        self.options = SimOptions(**options)
-        self.loop = asyncio.new_event_loop()
-        self.sim = SimServer(self.options)
-        self._thread = threading.Thread(target=self.loop.run_forever, daemon=True)
-
-    def start(self) -> SimThread:
-        self._thread.start()
-        self.run(self.sim.start())
-        return self
-
-    def run(self, coro: Coroutine[Any, Any, Any], timeout: float = 10) -> Any:
-        fut: Future[Any] = asyncio.run_coroutine_threadsafe(coro, self.loop)
-        return fut.result(timeout)
-
-    def call(self, fn: Callable[[], Any], timeout: float = 10) -> Any:
-        """Run ``fn()`` on the server's loop thread (device state must only be touched there)."""
-
-        async def _do() -> Any:
-            return fn()
-
-        return self.run(_do(), timeout)
-
-    def stop(self) -> None:
-        try:
-            self.run(self.sim.close())
-        finally:
-            self.loop.call_soon_threadsafe(self.loop.stop)
-            self._thread.join(5)
-            self.loop.close()
-
-    @property
-    def g(self) -> Any:
-        return self.sim.grippers[0]
+from ..simthread import SimThread, started
 
 
 @pytest.fixture
 def sim_factory() -> Iterator[Callable[..., SimThread]]:
-    started: list[SimThread] = []
-
-    def make(**options: Any) -> SimThread:
-        st = SimThread(**options).start()
-        started.append(st)
-        return st
-
-    yield make
-    for st in started:
-        st.stop()
+    yield from started(SimThread)
 
 
 @pytest.fixture
@@ -79,7 +30,34 @@ def sim(sim_factory: Callable[..., SimThread]) -> SimThread:
 # -- clients --------------------------------------------------------------------------------
 
 
-class TcpClient:
+class _FrameClient:
+    """What the raw TCP and UDP test clients share: waiting for a reply by ID, request, close."""
+
+    sock: socket.socket
+
+    def receive(self, timeout: float = 5) -> Frame:
+        raise NotImplementedError
+
+    def send(self, data: bytes) -> None:
+        raise NotImplementedError
+
+    def reply(self, command_id: int, timeout: float = 5, skip: tuple[int, ...] = ()) -> Frame:
+        """The next frame with ``command_id`` (other IDs in ``skip`` are dropped, others fail)."""
+        while True:
+            f = self.receive(timeout)
+            if f.command_id == command_id:
+                return f
+            assert f.command_id in skip, f"unexpected frame {f.hex()} while waiting for {command_id:02X}h"
+
+    def request(self, command_id: int, payload: bytes = b"", timeout: float = 5) -> Frame:
+        self.send(Frame(command_id, payload).encode())
+        return self.reply(command_id, timeout, skip=AUTO_IDS)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class TcpClient(_FrameClient):
     """A blocking raw-socket WSG client."""
 
     def __init__(self, port: int, host: str = "127.0.0.1", rcvbuf: int | None = None) -> None:
@@ -106,23 +84,8 @@ class TcpClient:
             self.inbox += [e for e in self.parser.feed(data) if isinstance(e, Frame)]
         return self.inbox.pop(0)
 
-    def reply(self, command_id: int, timeout: float = 5, skip: tuple[int, ...] = ()) -> Frame:
-        """The next frame with ``command_id`` (other IDs in ``skip`` are dropped, others fail)."""
-        while True:
-            f = self.receive(timeout)
-            if f.command_id == command_id:
-                return f
-            assert f.command_id in skip, f"unexpected frame {f.hex()} while waiting for {command_id:02X}h"
 
-    def request(self, command_id: int, payload: bytes = b"", timeout: float = 5) -> Frame:
-        self.send(Frame(command_id, payload).encode())
-        return self.reply(command_id, timeout, skip=AUTO_IDS)
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-class UdpClient:
+class UdpClient(_FrameClient):
     """A blocking UDP client; receives on its own socket (reply to the sender's port)."""
 
     def __init__(self, port: int, host: str = "127.0.0.1") -> None:
@@ -144,19 +107,6 @@ class UdpClient:
         assert len(frames) == 1, f"one frame per datagram expected, got {data.hex()}"
         return frames[0]
 
-    def reply(self, command_id: int, timeout: float = 5, skip: tuple[int, ...] = ()) -> Frame:
-        while True:
-            f = self.receive(timeout)
-            if f.command_id == command_id:
-                return f
-            assert f.command_id in skip, f"unexpected frame {f.hex()} while waiting for {command_id:02X}h"
-
-    def request(self, command_id: int, payload: bytes = b"", timeout: float = 5) -> Frame:
-        self.send(Frame(command_id, payload).encode())
-        return self.reply(command_id, timeout, skip=AUTO_IDS)
-
-    def close(self) -> None:
-        self.sock.close()
 
 
 AUTO_IDS = tuple(cid for cid, spec in CATALOG.items() if spec.auto_update)
