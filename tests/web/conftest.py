@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import asyncio
 import os
+import socket
+import struct
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future
@@ -21,6 +23,7 @@ import pytest
 
 from pywsg.device import Settings, VirtualGripper
 from pywsg.fieldbus.modbus import serve_modbus
+from pywsg.protocol import Frame
 from pywsg.server import DeviceRunner, TcpServer
 from pywsg.web.app import WebHandle, serve_web
 
@@ -168,3 +171,16 @@ def wait_for(cond: Callable[[], bool], timeout: float = 5.0, step: float = 0.02)
             return
         time.sleep(step)
     raise AssertionError("condition not met in time")
+
+
+def read_status(s: socket.socket) -> str:
+    """Read one whole frame from a raw TCP socket and return its status name."""
+    head = b""
+    while len(head) < 6:
+        head += s.recv(6 - len(head))
+    size = struct.unpack_from("<H", head, 4)[0]
+    rest = b""
+    while len(rest) < size + 2:
+        rest += s.recv(size + 2 - len(rest))
+    status = Frame(head[3], rest[:size]).status
+    return status.name if hasattr(status, "name") else str(status)

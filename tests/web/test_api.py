@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import socket
-import struct
 import time
 from pathlib import Path
 
@@ -23,7 +22,7 @@ from websockets.typing import Origin
 from pywsg.fieldbus.image import CmdFlag, OutputImage
 from pywsg.protocol import CATALOG, Command, Frame, SystemFlag
 
-from .conftest import LiveSim, client_for, home, wait_for
+from .conftest import LiveSim, client_for, home, read_status, wait_for
 
 PAGES = ["/", "/settings/interface", "/settings/motion", "/diagnosis/log", "/diagnosis/fieldbus",
          "/simulation", "/help"]
@@ -240,24 +239,13 @@ def test_crc_setting_is_obeyed_over_tcp_at_once(sim: LiveSim, api: httpx.Client)
     bad[-1] ^= 0xFF
     with socket.create_connection(("127.0.0.1", sim.tcp.port), timeout=3) as s:
         s.sendall(bytes(bad))
-        assert _status(s) == "E_CHECKSUM_ERROR"
+        assert read_status(s) == "E_CHECKSUM_ERROR"
         assert api.post("/api/settings", json={"crc_check": False}).status_code == 200
         s.sendall(bytes(bad))
-        assert _status(s) == "E_SUCCESS"
+        assert read_status(s) == "E_SUCCESS"
         assert api.post("/api/settings", json={"crc_check": True}).status_code == 200
         s.sendall(Frame(Command.DISCONNECT).encode())
-        _status(s)
-
-
-def _status(s: socket.socket) -> str:
-    head = b""
-    while len(head) < 6:
-        head += s.recv(6 - len(head))
-    size = struct.unpack_from("<H", head, 4)[0]
-    rest = b""
-    while len(rest) < size + 2:
-        rest += s.recv(size + 2 - len(rest))
-    return Frame(head[3], rest[:size]).status.name  # type: ignore[union-attr]
+        read_status(s)
 
 
 def test_log_is_incremental_and_validates(sim: LiveSim, api: httpx.Client) -> None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import shutil
 import socket
-import struct
 import time
 from typing import Any
 
@@ -20,7 +19,7 @@ from pymodbus.client import ModbusTcpClient
 from pywsg.fieldbus.image import CmdFlag, OutputImage
 from pywsg.protocol import CATALOG, Command, Frame
 
-from .conftest import ARTIFACTS, DOC_IMAGES, LiveSim, client_for, home, wait_for
+from .conftest import ARTIFACTS, DOC_IMAGES, LiveSim, client_for, home, read_status, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -124,7 +123,7 @@ def test_disable_crc_check_in_settings_then_a_bad_crc_frame_runs(sim: LiveSim, p
     bad[-2] ^= 0x5A
     with socket.create_connection(("127.0.0.1", sim.tcp.port), timeout=3) as s:
         s.sendall(bytes(bad))
-        assert _reply_status(s) == "E_CHECKSUM_ERROR"
+        assert read_status(s) == "E_CHECKSUM_ERROR"
         page.goto(sim.url + "/settings/interface")
         page.wait_for_selector("#set-crc_check")
         assert page.is_checked("#set-crc_check")
@@ -135,14 +134,14 @@ def test_disable_crc_check_in_settings_then_a_bad_crc_frame_runs(sim: LiveSim, p
         assert "saved" in page.inner_text("#settings-result")
         shot(page, "settings-crc-off")
         s.sendall(bytes(bad))
-        assert _reply_status(s) == "E_SUCCESS"  # executed despite the wrong CRC
+        assert read_status(s) == "E_SUCCESS"  # executed despite the wrong CRC
         page.check("#set-crc_check")
         page.click("#settings-save")
         page.wait_for_function("document.querySelector('#settings-result').innerText.startsWith('Applied')")
         s.sendall(bytes(bad))
-        assert _reply_status(s) == "E_CHECKSUM_ERROR"
+        assert read_status(s) == "E_CHECKSUM_ERROR"
         s.sendall(Frame(Command.DISCONNECT).encode())
-        _reply_status(s)
+        read_status(s)
 
 
 def test_invalid_setting_is_refused_beside_the_field(sim: LiveSim, page: Any) -> None:
@@ -256,13 +255,3 @@ def test_stop_button_stops_a_motion(sim: LiveSim, page: Any, api: httpx.Client) 
     assert sim.snapshot().width > 50
 
 
-def _reply_status(s: socket.socket) -> str:
-    head = b""
-    while len(head) < 6:
-        head += s.recv(6 - len(head))
-    size = struct.unpack_from("<H", head, 4)[0]
-    rest = b""
-    while len(rest) < size + 2:
-        rest += s.recv(size + 2 - len(rest))
-    status = Frame(head[3], rest[:size]).status
-    return status.name if hasattr(status, "name") else str(status)
