@@ -10,14 +10,10 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import TYPE_CHECKING
 
 from ...protocol import FingerType, Frame, Status
-from .base import FirmwarePlugin
-
-if TYPE_CHECKING:
-    from ..gripper import VirtualGripper
-    from ..session import Session
+from ..session import Session
+from .base import FirmwarePlugin, ScriptHost
 
 REQUEST = struct.Struct("<Bff")
 REPLY = struct.Struct("<B5f")
@@ -31,7 +27,7 @@ class RosMeasurePlugin(FirmwarePlugin):
         self.speed_mode = False
         self.speed = 0.0
 
-    def handle(self, gripper: VirtualGripper, session: Session, command_id: int, payload: bytes,
+    def handle(self, gripper: ScriptHost, session: Session, command_id: int, payload: bytes,
                now: float) -> Frame:
         if command_id in (0xB1, 0xB2):
             if len(payload) < REQUEST.size:
@@ -53,7 +49,7 @@ class RosMeasurePlugin(FirmwarePlugin):
         return Frame.reply(command_id, Status.E_SUCCESS, measure(gripper, now))
 
 
-def measure(gripper: VirtualGripper, now: float) -> bytes:
+def measure(gripper: ScriptHost, now: float) -> bytes:
     state = int(gripper.system_flags(now)) & 0xFF  # "Only the lowest byte of state is sent!"
     forces = [math.nan, math.nan]
     force = gripper.force(now)

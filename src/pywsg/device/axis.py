@@ -1,0 +1,414 @@
+"""What the fingers do: the axis, its trajectory, contact with obstacles and the grip state machine.
+
+One :class:`Axis` per device holds the motion configuration (000 §3.3: acceleration, force limit,
+soft limits, overdrive), the reference (§3.2.1), the 41h gripper state and the flags that belong to
+motion (Appendix B: AXIS_STOPPED, TARGET_POS_REACHED, BLOCKED_MINUS/PLUS). It answers "when is the
+next thing going to happen to the fingers" (:meth:`Axis.next_event`) and "what happens then"
+(:meth:`Axis.on_event`). It never talks to a client: a motion's final reply and a FAST STOP go out
+through the small :class:`AxisHost` interface; scheduling is the caller's job.
+
+Units: width mm, speed mm/s (of the opening width), acceleration mm/s², force N, time s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+from ..protocol import GripperState, Status, SystemFlag
+from .faults import Obstacle
+from .log import LogLevel, SystemLog
+from .motion import Trajectory, plan_move, plan_velocity
+from .profiles import Profile
+from .session import Session
+from .thermal import ThermalModel
+
+S = Status
+GS = GripperState
+
+SOFT_EPS = 1e-6  # mm: a soft limit is violated only strictly beyond it
+POS_EPS = 1e-6
+SPEED_EPS = 1e-6
+
+SF_AXIS_STOPPED = int(SystemFlag.SF_AXIS_STOPPED)
+SF_BLOCKED_MINUS = int(SystemFlag.SF_BLOCKED_MINUS)
+SF_BLOCKED_PLUS = int(SystemFlag.SF_BLOCKED_PLUS)
+SF_TARGET_POS_REACHED = int(SystemFlag.SF_TARGET_POS_REACHED)
+SF_BLOCKED = SF_BLOCKED_MINUS | SF_BLOCKED_PLUS
+_MOTION_BITS = SF_AXIS_STOPPED | SF_TARGET_POS_REACHED | SF_BLOCKED
+
+AxisEvent = tuple[float, int, str, object]
+"""(time, priority, kind, data): kind ``end``, ``contact`` (data: the Obstacle), ``hard`` / ``soft``
+(data: the width of the end stop / soft limit)."""
+
+
+@dataclass(slots=True)
+class Motion:
+    """The motion in progress and what to answer when it ends.
+
+    ``kind``: homing, prepos, grip, release, jog, script, lost (part lost: fingers run on to the
+    end of the clamping travel), snap (obstacle removed while clamping).
+    """
+
+    kind: str
+    session: Session | None
+    command_id: int | None
+    target: float
+    speed: float
+    direction: int
+    stop_on_block: bool = True
+    nominal: float = 0.0  # grip: nominal part width
+    force: float = 0.0  # jog / script: pressing force when blocked
+
+
+@dataclass(slots=True)
+class Contact:
+    """Fingers resting on an obstacle: holding a part, clamping (21h), or pressing (jog/script)."""
+
+    obstacle: Obstacle
+    direction: int  # direction the fingers push in
+    force: float  # N
+    kind: str  # hold, clamp, press, blocked
+    target: float = 0.0  # clamp: where to snap when the obstacle goes
+    speed: float = 0.0
+    nominal: float = 0.0
+
+
+class AxisHost(Protocol):
+    """What the axis needs from the device around it."""
+
+    def final_reply(self, motion: Motion, status: Status) -> None:
+        """The motion ended: send its deferred reply (if it has a session) with ``status``."""
+
+    def fast_stop(self, now: float, reason: str, interrupted: bool | None = None) -> None:
+        """Raise FAST STOP (a soft limit was crossed)."""
+
+
+class Axis:
+    """The fingers and their state machine (41h), evaluated in closed form on the device's clock."""
+
+    def __init__(self, host: AxisHost, profile: Profile, log: SystemLog, thermal: ThermalModel, now: float,
+                 acceleration: float, force_limit: float, clamping_travel: float) -> None:
+        self.host = host
+        self.profile = profile
+        self.log = log
+        self.thermal = thermal
+        self.clamping_travel = clamping_travel  # mm, from the settings
+        self.acceleration = profile.clamp_acc(acceleration)
+        self.force_limit = min(max(force_limit, profile.min_force), profile.nom_force)
+        self.soft_limits: tuple[float, float] | None = None
+        self.overdrive = False
+        self.referenced = False
+        self.gstate = GS.IDLE
+        self.traj = Trajectory.rest(now, profile.stroke / 2)  # unknown position until homing
+        self.motion: Motion | None = None
+        self.contact: Contact | None = None
+        self.bits = 0  # latched motion flags: AXIS_STOPPED, TARGET_POS_REACHED, BLOCKED_MINUS/PLUS
+        self.obstacles: dict[str, Obstacle] = {}
+        self.stats = [0, 0, 0]  # 42h: grips, no part, part lost
+
+    # ------------------------------------------------------------------ readings
+
+    def max_force(self) -> float:
+        return self.profile.ovr_force if self.overdrive else self.profile.nom_force
+
+    def force(self) -> float:
+        """Gripping force in N: the force limit while holding, 50 % nominal while clamping, else 0."""
+        c = self.contact
+        return c.force if c is not None else 0.0
+
+    def holding(self) -> bool:
+        c = self.contact
+        return c is not None and c.kind == "hold"
+
+    def soft_range_error(self, target: float) -> bool:
+        """True if ``target`` lies inside a restricted area (soft limits)."""
+        if self.soft_limits is None:
+            return False
+        lo, hi = self.soft_limits
+        return target < lo - SOFT_EPS or target > hi + SOFT_EPS
+
+    def busy(self, now: float, replaces: tuple[str, ...] = ()) -> bool:
+        """A motion runs that a new one may not supersede (``replaces``: kinds it may)."""
+        m = self.motion
+        return (m is not None or self.traj.is_moving(now)) and (m is None or m.kind not in replaces)
+
+    # ------------------------------------------------------------------ events
+
+    def next_event(self, now: float) -> AxisEvent | None:
+        """Earliest of: target reached, contact with an obstacle, end stop, soft-limit entry."""
+        tr = self.traj
+        m = self.motion
+        if m is None:
+            return None
+        if not tr.moving:
+            return (max(now, tr.start_time), 1, "end", None)
+        best: AxisEvent | None = None
+        if math.isfinite(tr.end_time):
+            best = (tr.end_time, 1, "end", None)
+        for ob in self.obstacles.values():
+            t = tr.first_crossing(ob.width, ob.blocks, after=now)
+            if t is not None and (best is None or (t, 0) < best[:2]):
+                best = (t, 0, "contact", ob)
+        if not math.isfinite(tr.end_time):  # moves stay inside the stroke; jogs run to an end stop
+            stroke = self.profile.stroke
+            for p, d in ((0.0, -1), (stroke, 1)):
+                t = tr.first_crossing(p, d, after=now)
+                if t is not None and (best is None or (t, 2) < best[:2]):
+                    best = (t, 2, "hard", p)
+        if self.soft_limits is not None and m.kind != "homing" and self.referenced:
+            lo, hi = self.soft_limits
+            x = tr.position(now)
+            for p, d, ok in ((lo - SOFT_EPS, -1, x >= lo - SOFT_EPS), (hi + SOFT_EPS, 1, x <= hi + SOFT_EPS)):
+                if not ok:
+                    continue
+                t = tr.first_crossing(p, d, after=now)
+                if t is not None and (best is None or (t, 3) < best[:2]):
+                    best = (t, 3, "soft", p)
+        return best
+
+    def on_event(self, t: float, kind: str, data: object) -> None:
+        m = self.motion
+        if m is None:
+            return
+        if kind == "end":
+            self._on_end(t, m)
+        elif kind == "contact":
+            assert isinstance(data, Obstacle)
+            self._on_contact(t, m, data)
+        elif kind == "hard":
+            assert isinstance(data, float)
+            self.halt(t, data)
+            d = 1 if data > 0 else -1
+            self.bits |= SF_BLOCKED_PLUS if d > 0 else SF_BLOCKED_MINUS
+            if m.kind == "homing":  # cannot happen: homing targets the end stop
+                self._on_end(t, m)
+                return
+            self.motion = None
+            if m.kind in ("prepos", "release", "grip"):
+                self._finish_with(m, S.E_RANGE_ERROR if m.kind == "prepos" else S.E_AXIS_BLOCKED)
+                self.gstate = GS.IDLE if m.kind != "grip" else GS.NO_PART
+            elif m.kind == "jog" or m.kind == "script":
+                self.gstate = GS.IDLE
+        elif kind == "soft":
+            assert isinstance(data, float)
+            self.halt(t, data)
+            self.host.fast_stop(t, f"soft limit violated at {data:.2f} mm", interrupted=True)
+        self.update_load(t)
+
+    # ------------------------------------------------------------------ starting and stopping
+
+    def start(self, now: float, motion: Motion, traj: Trajectory) -> None:
+        self.bits &= ~_MOTION_BITS
+        self.contact = None
+        self.motion = motion
+        self.traj = traj
+        self.update_load(now)
+
+    def halt(self, now: float, x: float | None = None) -> None:
+        """Fingers stop at once (at ``x`` if given)."""
+        pos = self.traj.position(now) if x is None else x
+        self.traj = Trajectory.rest(now, pos)
+
+    def finish(self, status: Status) -> None:
+        """Send the running motion's final reply (if it has one) and forget the motion."""
+        m = self.motion
+        self.motion = None
+        if m is not None and m.command_id is not None:
+            self.host.final_reply(m, status)
+
+    def _finish_with(self, m: Motion, status: Status) -> None:
+        self.motion = m
+        self.finish(status)
+
+    def abort(self, status: Status, now: float) -> bool:
+        """Stop a running motion (or clamping); returns True if one was running."""
+        was = self.motion is not None
+        self.halt(now)
+        if was:
+            self.finish(status)
+        if self.contact is not None and self.contact.kind != "hold":
+            self.contact = None
+        self.update_load(now)
+        return was
+
+    def stop_script_motion(self, now: float) -> None:
+        """A firmware command takes over from a jog or a script motion."""
+        m = self.motion
+        if m is not None and m.kind in ("jog", "script"):
+            self.halt(now)
+            self.motion = None
+
+    def update_load(self, now: float) -> None:
+        """Tell the thermal model what the motor does now (holding force, moving)."""
+        c = self.contact
+        ratio = c.force / self.profile.nom_force if c is not None else 0.0
+        self.thermal.set_load(now, ThermalModel.rise_for(ratio, self.traj.is_moving(now)))
+
+    # ------------------------------------------------------------------ outcomes
+
+    def _on_end(self, t: float, m: Motion) -> None:
+        x = self.traj.final_x if self.traj.moving else self.traj.position(t)
+        self.halt(t, x)
+        self.motion = None
+        if m.kind == "homing":
+            self.referenced = True
+            self.gstate = GS.IDLE
+            self.bits |= SF_TARGET_POS_REACHED
+            self.log.add(t, LogLevel.INFO, f"homing done at {x:.2f} mm")
+            self._finish_with(m, S.E_SUCCESS)
+        elif m.kind in ("prepos", "release", "snap", "script"):
+            self.gstate = GS.IDLE
+            self.bits |= SF_TARGET_POS_REACHED
+            self._finish_with(m, S.E_SUCCESS)
+        elif m.kind == "grip":
+            # fell through the clamping travel without establishing the force
+            self.gstate = GS.NO_PART
+            self.stats[1] += 1
+            self._finish_with(m, S.E_CMD_FAILED)
+        elif m.kind == "lost":
+            self.gstate = GS.PART_LOST
+        else:  # jog: cannot end by itself
+            self.gstate = GS.IDLE
+
+    def _on_contact(self, t: float, m: Motion, ob: Obstacle) -> None:
+        x = ob.width
+        d = m.direction
+        blocked_bit = SF_BLOCKED_PLUS if d > 0 else SF_BLOCKED_MINUS
+        if m.kind == "grip":
+            lo, hi = m.nominal - self.clamping_travel, m.nominal + self.clamping_travel
+            if ob.kind == "part" and lo - POS_EPS <= x <= hi + POS_EPS:
+                force = self.force_limit
+                squeeze = 0.0 if math.isinf(ob.stiffness) else force / ob.stiffness
+                self.halt(t, x + d * squeeze)
+                self.contact = Contact(ob, d, force, "hold", nominal=m.nominal)
+                self.gstate = GS.HOLDING
+                self._finish_with(m, S.E_SUCCESS)
+            else:
+                self.halt(t, x)
+                self.gstate = GS.NO_PART
+                self.stats[1] += 1
+                self.bits |= blocked_bit
+                self._finish_with(m, S.E_CMD_FAILED)
+            return
+        self.halt(t, x)
+        self.bits |= blocked_bit
+        if m.kind == "prepos":
+            if m.stop_on_block:
+                self.gstate = GS.IDLE
+            else:  # clamp on block: keep pushing with half the nominal force, snap when freed
+                self.contact = Contact(ob, d, 0.5 * self.profile.nom_force, "clamp", m.target, m.speed)
+            self._finish_with(m, S.E_AXIS_BLOCKED)
+        elif m.kind == "homing":
+            self.gstate = GS.IDLE
+            self.log.add(t, LogLevel.ERROR, f"homing blocked at {x:.2f} mm")
+            self._finish_with(m, S.E_AXIS_BLOCKED)
+        elif m.kind == "release":
+            self.gstate = GS.IDLE
+            self._finish_with(m, S.E_AXIS_BLOCKED)
+        elif m.kind in ("jog", "script"):
+            self.contact = Contact(ob, d, m.force, "press", m.target, m.speed)
+            self.motion = None
+            if m.kind == "jog":
+                self.gstate = GS.IDLE
+            else:
+                self._finish_with(m, S.E_AXIS_BLOCKED)
+        elif m.kind in ("lost", "snap"):
+            self.motion = None
+
+    def obstacles_changed(self, now: float) -> None:
+        """An obstacle moved: release or lose what was held, snap a clamp whose obstacle went."""
+        c = self.contact
+        if c is not None and self.obstacles.get(c.obstacle.kind) is not c.obstacle:
+            self.contact = None
+            x = self.traj.position(now)
+            self.bits &= ~SF_BLOCKED
+            if c.kind == "hold":
+                self.gstate = GS.PART_LOST
+                self.stats[2] += 1
+                self.log.add(now, LogLevel.WARNING, f"part lost at {x:.2f} mm")
+                # the fingers run on to the end of the grip's clamping travel (or one travel further)
+                travel = self.clamping_travel
+                end = c.nominal + c.direction * travel
+                if (end - x) * c.direction <= 0:
+                    end = x + c.direction * travel
+                end = min(max(end, 0.0), self.profile.stroke)
+                self.motion = Motion("lost", None, None, end, self.profile.max_speed / 4, c.direction)
+                self.traj = plan_move(now, x, end, self.motion.speed, self.acceleration)
+            elif c.kind == "clamp":
+                self.motion = Motion("snap", None, None, c.target, c.speed, c.direction)
+                self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
+        elif self.motion is None and self.bits & SF_BLOCKED:
+            self.bits &= ~SF_BLOCKED
+        self.update_load(now)
+
+    # ------------------------------------------------------------------ jog and script motion
+
+    def jog_stop(self, now: float) -> bool:
+        """End a jog (level back to 0); True if one ran."""
+        m = self.motion
+        if m is None or m.kind != "jog":
+            return False
+        self.halt(now)
+        self.motion = None
+        self.gstate = GS.IDLE
+        self.update_load(now)
+        return True
+
+    def jog(self, now: float, d: int, speed: float, force: float) -> bool:
+        """Run at ``speed`` mm/s in direction ``d`` until an end stop, an obstacle (pressing with
+        ``force`` N) or a soft limit; False if nothing had to change."""
+        m = self.motion
+        v = self.profile.clamp_speed(speed if speed > 0 else self.profile.min_speed)
+        f = min(max(force, self.profile.min_force), self.max_force())
+        if m is not None and m.kind == "jog" and m.direction == d and m.speed == v and m.force == f:
+            return False  # level still held: nothing changes
+        c = self.contact
+        if m is None and c is not None and c.kind == "press" and c.direction == d:
+            c.force = f  # still pressing against the same obstacle
+            return True
+        self.gstate = GS.POSITIONING
+        target = self.profile.stroke if d > 0 else 0.0
+        self.start(now, Motion("jog", None, None, target, v, d, force=f),
+                   plan_velocity(now, self.traj.position(now), self.traj.velocity(now), d * v, self.acceleration))
+        return True
+
+    def script_move(self, now: float, width: float, speed: float) -> None:
+        x = self.traj.position(now)
+        target = min(max(width, 0.0), self.profile.stroke)
+        v = self.profile.clamp_speed(abs(speed))
+        d = 1 if target >= x else -1
+        self.start(now, Motion("script", None, None, target, v, d, force=self.force_limit),
+                   plan_move(now, x, target, v, self.acceleration, v0=self.traj.velocity(now)))
+
+    def script_speed(self, now: float, velocity: float, force: float | None) -> bool:
+        """Run at ``velocity`` mm/s (signed) until blocked; False if already pressing that way."""
+        d = 1 if velocity > 0 else -1
+        c = self.contact
+        if c is not None and c.kind == "press" and c.direction == d:
+            if force is not None:
+                c.force = force
+            return False  # still pressing against the same obstacle
+        v = min(abs(velocity), self.profile.max_speed)
+        target = self.profile.stroke if d > 0 else 0.0
+        f = self.force_limit if force is None else force
+        self.start(now, Motion("script", None, None, target, v, d, force=f),
+                   plan_velocity(now, self.traj.position(now), self.traj.velocity(now), d * v, self.acceleration))
+        return True
+
+    def script_halt(self, now: float) -> bool:
+        """Speed 0: a script motion stops where it is; True if one ran."""
+        if self.motion is not None and self.motion.kind == "script":
+            self.halt(now)
+            self.motion = None
+            return True
+        return False
+
+    def script_stop(self, now: float) -> None:
+        """The script lets go: motion stopped, pressing ended, BLOCKED flags cleared."""
+        self.script_halt(now)
+        if self.contact is not None and self.contact.kind == "press":
+            self.contact = None
+        self.bits &= ~SF_BLOCKED
+        self.update_load(now)
