@@ -35,7 +35,7 @@ from .axis import Axis
 from .clock import Clock, monotonic_clock
 from .core import DeviceCore, Snapshot
 from .fingers import Finger
-from .handlers import HANDLERS, request_size
+from .handlers import HANDLERS, length_error, request_size
 from .log import LogLevel
 from .profiles import get_profile
 from .session import Deliver, Session
@@ -55,7 +55,8 @@ _E_CMD_PENDING = int(Status.E_CMD_PENDING)
 _REQUEST_CACHE_SIZE = 256
 _REQUEST_CACHE_BYTES = 64
 
-Dispatch = dict[int, tuple[Callable[[Session, bytes, float], Frame], int | None]]
+# command ID -> (handler bound to the device, fixed request size or None, status for a wrong length)
+Dispatch = dict[int, tuple[Callable[[Session, bytes, float], Frame], int | None, Status]]
 
 
 def _max_request(command_id: int) -> int:
@@ -85,7 +86,8 @@ class VirtualGripper(DeviceCore):
             settings = settings.updated(model=get_profile(model).key)
         super().__init__(clock or monotonic_clock)
         # the handler table bound to this device: one call per request, no lookup on the class
-        self._dispatch: Dispatch = {cid: (partial(fn, self), request_size(cid)) for cid, fn in HANDLERS.items()}
+        self._dispatch: Dispatch = {cid: (partial(fn, self), request_size(cid), length_error(cid))
+                                   for cid, fn in HANDLERS.items()}
         # requests seen before, as their exact bytes (a polling client repeats them): parsed once.
         # Only frames with a valid checksum go in, so a hit is right whatever the CRC setting.
         self._requests: dict[bytes, Frame] = {}
@@ -282,9 +284,9 @@ class VirtualGripper(DeviceCore):
                 else:
                     reply = plugin.handle(self, s, cid, payload, now)
             else:
-                handler, size = entry
+                handler, size, length_status = entry
                 if size is not None and len(payload) != size and cid != Command.FAST_STOP:
-                    reply = Frame.reply(cid, S.E_NO_PARAM_EXPECTED if size == 0 else S.E_CMD_FORMAT_ERROR)
+                    reply = Frame.reply(cid, length_status)
                 else:
                     reply = handler(s, payload, now)
         if streams.outbox:

@@ -404,3 +404,16 @@ def request_size(cid: int) -> int | None:
     """The fixed request payload size of ``cid`` (None: variable, the handler checks it)."""
     layout = CATALOG[cid].request_layout
     return None if layout.variable is not None else layout.fixed_size
+
+
+def length_error(cid: int) -> Status:
+    """The status for a request payload of the wrong length: the command's own list decides.
+
+    A payload given to a command without parameters is E_NO_PARAM_EXPECTED where the manual lists it
+    (e.g. 31h, 000 §3.3.2); the finger commands 60h–63h / 70h–73h list only E_CMD_FORMAT_ERROR
+    ("Command length mismatch", 000 §3.6.1–3.6.8), so they answer that.
+    """
+    spec = CATALOG[cid]
+    if request_size(cid) == 0 and S.E_NO_PARAM_EXPECTED in spec.statuses:
+        return S.E_NO_PARAM_EXPECTED
+    return S.E_CMD_FORMAT_ERROR
