@@ -30,6 +30,8 @@ GS = GripperState
 SOFT_EPS = 1e-6  # mm: a soft limit is violated only strictly beyond it
 POS_EPS = 1e-6
 SPEED_EPS = 1e-6
+MOTION_TIMEOUT_S = 1.0  # s past a motion's planned end: a release that cannot get there ends E_TIMEOUT
+CLAMP_FORCE_RATIO = 0.5  # of the nominal force: pushing on after a block (000 §3.2.2 "Clamp on block")
 
 SF_AXIS_STOPPED = int(SystemFlag.SF_AXIS_STOPPED)
 SF_BLOCKED_MINUS = int(SystemFlag.SF_BLOCKED_MINUS)
@@ -39,8 +41,8 @@ SF_BLOCKED = SF_BLOCKED_MINUS | SF_BLOCKED_PLUS
 _MOTION_BITS = SF_AXIS_STOPPED | SF_TARGET_POS_REACHED | SF_BLOCKED
 
 AxisEvent = tuple[float, int, str, object]
-"""(time, priority, kind, data): kind ``end``, ``contact`` (data: the Obstacle), ``hard`` / ``soft``
-(data: the width of the end stop / soft limit)."""
+"""(time, priority, kind, data): kind ``end``, ``contact`` (data: the Obstacle), ``hard`` (data: the end
+stop's width and direction), ``soft`` (data: the soft limit's width), ``timeout``."""
 
 
 @dataclass(slots=True)
@@ -60,6 +62,8 @@ class Motion:
     stop_on_block: bool = True
     nominal: float = 0.0  # grip: nominal part width
     force: float = 0.0  # jog / script: pressing force when blocked
+    deadline: float = math.inf  # release: E_TIMEOUT if the target is not reached by then
+    stalled: bool = False  # release: blocked, pushing on until the obstacle goes or the deadline
 
 
 @dataclass(slots=True)
@@ -69,7 +73,7 @@ class Contact:
     obstacle: Obstacle
     direction: int  # direction the fingers push in
     force: float  # N
-    kind: str  # hold, clamp, press, blocked
+    kind: str  # hold, clamp (21h clamp on block), press (jog/script), stall (26h blocked)
     target: float = 0.0  # clamp: where to snap when the obstacle goes
     speed: float = 0.0
     nominal: float = 0.0
@@ -81,7 +85,7 @@ class AxisHost(Protocol):
     def final_reply(self, motion: Motion, status: Status) -> None:
         """The motion ended: send its deferred reply (if it has a session) with ``status``."""
 
-    def fast_stop(self, now: float, reason: str, interrupted: bool | None = None) -> None:
+    def fast_stop(self, now: float, reason: str) -> None:
         """Raise FAST STOP (a soft limit was crossed)."""
 
 
@@ -100,6 +104,10 @@ class Axis:
         self.soft_limits: tuple[float, float] | None = None
         self.overdrive = False
         self.referenced = False
+        # true width − reported width (mm): 0 unless homing stopped on an obstacle (000 §3.2.1 "wrong
+        # reference point"). The trajectory, targets and readings are in reported (referenced) mm;
+        # obstacles and the mechanical end stops are where they physically are.
+        self.offset = 0.0
         self.gstate = GS.IDLE
         self.traj = Trajectory.rest(now, profile.stroke / 2)  # unknown position until homing
         self.motion: Motion | None = None
@@ -109,6 +117,17 @@ class Axis:
         self.stats = [0, 0, 0]  # 42h: grips, no part, part lost
 
     # ------------------------------------------------------------------ readings
+
+    def local(self, true_width: float) -> float:
+        """A physical width (obstacle, end stop) in the axis' reported coordinates."""
+        return true_width - self.offset
+
+    def touching(self, x: float) -> Obstacle | None:
+        """The obstacle the fingers rest on at reported width ``x``, if any."""
+        for ob in self.obstacles.values():
+            if abs(ob.width - self.offset - x) <= POS_EPS:
+                return ob
+        return None
 
     def max_force(self) -> float:
         return self.profile.ovr_force if self.overdrive else self.profile.nom_force
@@ -142,21 +161,27 @@ class Axis:
         m = self.motion
         if m is None:
             return None
+        if m.stalled:
+            return (max(now, m.deadline), 1, "timeout", None)
         if not tr.moving:
             return (max(now, tr.start_time), 1, "end", None)
         best: AxisEvent | None = None
         if math.isfinite(tr.end_time):
             best = (tr.end_time, 1, "end", None)
+        if math.isfinite(m.deadline) and (best is None or (m.deadline, 4) < best[:2]):
+            best = (m.deadline, 4, "timeout", None)
         for ob in self.obstacles.values():
-            t = tr.first_crossing(ob.width, ob.blocks, after=now)
+            t = tr.first_crossing(ob.width - self.offset, ob.blocks, after=now)
             if t is not None and (best is None or (t, 0) < best[:2]):
                 best = (t, 0, "contact", ob)
-        if not math.isfinite(tr.end_time):  # moves stay inside the stroke; jogs run to an end stop
+        # moves stay inside the stroke, homing ends on the end stop; jogs, and any move after a wrong
+        # reference, can run into a mechanical end stop
+        if not math.isfinite(tr.end_time) or (self.offset != 0.0 and m.kind != "homing"):
             stroke = self.profile.stroke
-            for p, d in ((0.0, -1), (stroke, 1)):
+            for p, d in ((-self.offset, -1), (stroke - self.offset, 1)):
                 t = tr.first_crossing(p, d, after=now)
                 if t is not None and (best is None or (t, 2) < best[:2]):
-                    best = (t, 2, "hard", p)
+                    best = (t, 2, "hard", (p, d))
         if self.soft_limits is not None and m.kind != "homing" and self.referenced:
             lo, hi = self.soft_limits
             x = tr.position(now)
@@ -178,23 +203,33 @@ class Axis:
             assert isinstance(data, Obstacle)
             self._on_contact(t, m, data)
         elif kind == "hard":
-            assert isinstance(data, float)
-            self.halt(t, data)
-            d = 1 if data > 0 else -1
+            assert isinstance(data, tuple)
+            p, d = data
+            self.halt(t, p)
             self.bits |= SF_BLOCKED_PLUS if d > 0 else SF_BLOCKED_MINUS
-            if m.kind == "homing":  # cannot happen: homing targets the end stop
-                self._on_end(t, m)
+            if m.kind == "release":  # 26h lists no blocked status: push on until the timeout
+                self._stall(m)
                 return
             self.motion = None
-            if m.kind in ("prepos", "release", "grip"):
-                self._finish_with(m, S.E_RANGE_ERROR if m.kind == "prepos" else S.E_AXIS_BLOCKED)
-                self.gstate = GS.IDLE if m.kind != "grip" else GS.NO_PART
+            if m.kind == "prepos":  # 000 §3.2.2: "A limit (either soft or hard limit) was reached"
+                self.gstate = GS.ERROR
+                self._finish_with(m, S.E_RANGE_ERROR)
+            elif m.kind == "grip":  # fully closed (or open) on the end stop: no part found
+                self.gstate = GS.NO_PART
+                self.stats[1] += 1
+                self._finish_with(m, S.E_CMD_FAILED)
             elif m.kind == "jog" or m.kind == "script":
                 self.gstate = GS.IDLE
+        elif kind == "timeout":
+            self.contact = None  # the drive gives up pushing
+            self.motion = None
+            self.gstate = GS.ERROR
+            self.log.add(t, LogLevel.ERROR, f"{m.kind}: target {m.target:.2f} mm not reached in time")
+            self._finish_with(m, S.E_TIMEOUT)
         elif kind == "soft":
             assert isinstance(data, float)
             self.halt(t, data)
-            self.host.fast_stop(t, f"soft limit violated at {data:.2f} mm", interrupted=True)
+            self.host.fast_stop(t, f"soft limit violated at {data:.2f} mm")
         self.update_load(t)
 
     # ------------------------------------------------------------------ starting and stopping
@@ -250,18 +285,23 @@ class Axis:
 
     def _on_end(self, t: float, m: Motion) -> None:
         x = self.traj.final_x if self.traj.moving else self.traj.position(t)
-        self.halt(t, x)
         self.motion = None
+        if m.kind == "homing":  # on the mechanical end stop: the reference is right again
+            x = self.profile.stroke if m.direction > 0 else 0.0
+            self.offset = 0.0
+        self.halt(t, x)
         if m.kind == "homing":
             self.referenced = True
             self.gstate = GS.IDLE
             self.bits |= SF_TARGET_POS_REACHED
             self.log.add(t, LogLevel.INFO, f"homing done at {x:.2f} mm")
             self._finish_with(m, S.E_SUCCESS)
-        elif m.kind in ("prepos", "release", "snap", "script"):
+        elif m.kind in ("prepos", "release", "script"):
             self.gstate = GS.IDLE
             self.bits |= SF_TARGET_POS_REACHED
             self._finish_with(m, S.E_SUCCESS)
+        elif m.kind == "snap":  # the clamp's 21h already answered E_AXIS_BLOCKED: its ERROR stays
+            self.bits |= SF_TARGET_POS_REACHED
         elif m.kind == "grip":
             # fell through the clamping travel without establishing the force
             self.gstate = GS.NO_PART
@@ -273,7 +313,7 @@ class Axis:
             self.gstate = GS.IDLE
 
     def _on_contact(self, t: float, m: Motion, ob: Obstacle) -> None:
-        x = ob.width
+        x = ob.width - self.offset
         d = m.direction
         blocked_bit = SF_BLOCKED_PLUS if d > 0 else SF_BLOCKED_MINUS
         if m.kind == "grip":
@@ -292,21 +332,20 @@ class Axis:
                 self.bits |= blocked_bit
                 self._finish_with(m, S.E_CMD_FAILED)
             return
+        if m.kind == "homing":
+            self._wrong_reference(t, m, ob)
+            return
         self.halt(t, x)
         self.bits |= blocked_bit
         if m.kind == "prepos":
-            if m.stop_on_block:
-                self.gstate = GS.IDLE
-            else:  # clamp on block: keep pushing with half the nominal force, snap when freed
-                self.contact = Contact(ob, d, 0.5 * self.profile.nom_force, "clamp", m.target, m.speed)
-            self._finish_with(m, S.E_AXIS_BLOCKED)
-        elif m.kind == "homing":
-            self.gstate = GS.IDLE
-            self.log.add(t, LogLevel.ERROR, f"homing blocked at {x:.2f} mm")
+            if not m.stop_on_block:  # clamp on block: keep pushing with half the nominal force, snap when freed
+                force = CLAMP_FORCE_RATIO * self.profile.nom_force
+                self.contact = Contact(ob, d, force, "clamp", m.target, m.speed)
+            self.gstate = GS.ERROR  # the command failed (41h "Error": an error during the process)
             self._finish_with(m, S.E_AXIS_BLOCKED)
         elif m.kind == "release":
-            self.gstate = GS.IDLE
-            self._finish_with(m, S.E_AXIS_BLOCKED)
+            self.contact = Contact(ob, d, CLAMP_FORCE_RATIO * self.profile.nom_force, "stall", m.target, m.speed)
+            self._stall(m)
         elif m.kind in ("jog", "script"):
             self.contact = Contact(ob, d, m.force, "press", m.target, m.speed)
             self.motion = None
@@ -316,6 +355,25 @@ class Axis:
                 self._finish_with(m, S.E_AXIS_BLOCKED)
         elif m.kind in ("lost", "snap"):
             self.motion = None
+
+    def _stall(self, m: Motion) -> None:
+        """26h blocked: the manual lists no blocked status for it, so the drive pushes on (RELEASING)
+        and the command ends E_TIMEOUT at its deadline, or completes if the obstacle goes first."""
+        m.stalled = True
+        self.motion = m
+
+    def _wrong_reference(self, t: float, m: Motion, ob: Obstacle) -> None:
+        """000 §3.2.1: "Obstacles … during homing may result in a wrong reference point": the blocking
+        position becomes the origin (0 mm homing negative, the stroke homing positive)."""
+        origin = self.profile.stroke if m.direction > 0 else 0.0
+        self.offset = ob.width - origin
+        self.halt(t, origin)
+        self.referenced = True
+        self.gstate = GS.IDLE
+        self.bits |= SF_TARGET_POS_REACHED
+        self.log.add(t, LogLevel.WARNING, f"homing stopped by an obstacle {abs(self.offset):.2f} mm before the "
+                                          "end stop: wrong reference point (000 §3.2.1), home again without it")
+        self._finish_with(m, S.E_SUCCESS)
 
     def obstacles_changed(self, now: float) -> None:
         """An obstacle moved: release or lose what was held, snap a clamp whose obstacle went."""
@@ -338,6 +396,9 @@ class Axis:
                 self.traj = plan_move(now, x, end, self.motion.speed, self.acceleration)
             elif c.kind == "clamp":
                 self.motion = Motion("snap", None, None, c.target, c.speed, c.direction)
+                self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
+            elif c.kind == "stall" and self.motion is not None:  # the release goes on to its width
+                self.motion.stalled = False
                 self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
         elif self.motion is None and self.bits & SF_BLOCKED:
             self.bits &= ~SF_BLOCKED

@@ -265,8 +265,8 @@ class DeviceCore:
         return self.axis.traj.position(self.clock() if now is None else now)
 
     def true_width(self, now: float | None = None) -> float:
-        """The physical width in mm, referenced or not."""
-        return self.axis.traj.position(self.clock() if now is None else now)
+        """The physical width in mm, referenced or not (differs from 43h after a wrong reference)."""
+        return self.axis.traj.position(self.clock() if now is None else now) + self.axis.offset
 
     def speed(self, now: float | None = None) -> float:
         """Finger speed in mm/s (rate of change of the opening width; negative when closing)."""
@@ -360,17 +360,20 @@ class DeviceCore:
 
     # ------------------------------------------------------------------ FAST STOP, faults, temperature
 
-    def fast_stop(self, now: float, reason: str, interrupted: bool | None = None) -> None:
-        """AxisHost: raise FAST STOP (000 §3.2.4): the fingers stop, a running motion is aborted."""
+    def fast_stop(self, now: float, reason: str) -> None:
+        """AxisHost: raise FAST STOP (000 §3.2.4): the fingers stop, a running motion is aborted, and the
+        drive is turned off (002 §3.1 bit 5 "Stop and turn off the motor"): no gripping force, a held
+        part is let go where it is. 41h goes to ERROR (001 §3.4.2: "… oder ein Fast Stop wurde
+        ausgelöst") until the next motion command after the acknowledge."""
         axis = self.axis
-        was = axis.motion is not None
-        axis.halt(now)
-        if was:
+        if axis.motion is not None:
+            axis.halt(now)
             axis.finish(S.E_CMD_ABORTED)
-        if interrupted or was:
-            axis.gstate = GS.ERROR
-        if axis.contact is not None and axis.contact.kind != "hold":
-            axis.contact = None
+        c = axis.contact
+        # fingers that pressed on something spring back to its surface; otherwise they stop where they are
+        axis.halt(now, axis.local(c.obstacle.width) if c is not None else None)
+        axis.contact = None
+        axis.gstate = GS.ERROR
         self._bits |= _SF_FAST_STOP
         self.log.add(now, LogLevel.ERROR, f"FAST STOP: {reason}")
         axis.update_load(now)

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from functools import partial
 
 from ..protocol import CATALOG, Command, FingerType, Frame, GripperState, HomingDirection, PrepositionFlag, Status
-from .axis import SF_AXIS_STOPPED, SF_BLOCKED, Motion
+from .axis import MOTION_TIMEOUT_S, POS_EPS, SF_AXIS_STOPPED, SF_BLOCKED, Motion
 from .core import DeviceCore
 from .fingers import POWER_UP_S
 from .log import LogLevel
@@ -87,7 +87,7 @@ def homing(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     d = 1 if direction == HomingDirection.POSITIVE else -1
     g.script_stop_if_running(now)
     axis = g.axis
-    target = g.profile.stroke if d > 0 else 0.0
+    target = (g.profile.stroke if d > 0 else 0.0) - axis.offset  # the mechanical end stop, where it really is
     x = axis.traj.position(now)
     axis.referenced = False
     axis.gstate = GS.POSITIONING
@@ -160,6 +160,9 @@ def grip(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     x = axis.traj.position(now)
     nominal = min(max(width, 0.0), g.profile.stroke)
     d = -1 if nominal < x else 1
+    touching = axis.touching(x)
+    if touching is not None and abs(nominal - x) <= POS_EPS:
+        d = touching.blocks  # resting on the part (e.g. after a FAST STOP let go of it): grip into it
     c = axis.contact
     if c is not None and c.kind == "hold":
         if c.direction != d:
@@ -172,7 +175,9 @@ def grip(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     axis.stats[0] += 1
     if c is not None and c.kind == "hold":
         # re-grip in the same direction: lift off the part first (the part stays where it is)
-        x = c.obstacle.width - d * 1e-6
+        x = axis.local(c.obstacle.width) - d * 1e-6
+    elif touching is not None and touching.blocks == d:
+        x -= d * 1e-6  # start just off the surface so that the contact is seen
     g.start_motion(now, Motion("grip", s, 0x25, target, v, d, nominal=nominal),
                    plan_move(now, x, target, v, axis.acceleration))
     return Frame.reply(0x25, S.E_CMD_PENDING)
@@ -195,7 +200,9 @@ def release(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     v = g.profile.clamp_speed(speed)
     d = 1 if target >= x else -1
     axis.gstate = GS.RELEASING
-    g.start_motion(now, Motion("release", s, 0x26, target, v, d), plan_move(now, x, target, v, axis.acceleration))
+    traj = plan_move(now, x, target, v, axis.acceleration)
+    # 000 §3.2.7 lists E_TIMEOUT, not E_AXIS_BLOCKED: a blocked release pushes on until its deadline
+    g.start_motion(now, Motion("release", s, 0x26, target, v, d, deadline=traj.end_time + MOTION_TIMEOUT_S), traj)
     return Frame.reply(0x26, S.E_CMD_PENDING)
 
 
