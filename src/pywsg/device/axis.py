@@ -64,6 +64,7 @@ class Motion:
     force: float = 0.0  # jog / script: pressing force when blocked
     deadline: float = math.inf  # release: E_TIMEOUT if the target is not reached by then
     stalled: bool = False  # release: blocked, pushing on until the obstacle goes or the deadline
+    velocity_mode: bool = False  # jog / script speed: run at ``speed`` until stopped or blocked
 
 
 @dataclass(slots=True)
@@ -77,6 +78,7 @@ class Contact:
     target: float = 0.0  # clamp: where to snap when the obstacle goes
     speed: float = 0.0
     nominal: float = 0.0
+    resume: Motion | None = None  # press of a script motion: it goes on when the obstacle goes
 
 
 class AxisHost(Protocol):
@@ -347,7 +349,9 @@ class Axis:
             self.contact = Contact(ob, d, CLAMP_FORCE_RATIO * self.profile.nom_force, "stall", m.target, m.speed)
             self._stall(m)
         elif m.kind in ("jog", "script"):
-            self.contact = Contact(ob, d, m.force, "press", m.target, m.speed)
+            # a script's mc.move / mc.speed stays commanded while blocked (cmd_measure.lua "keeps pushing")
+            self.contact = Contact(ob, d, m.force, "press", m.target, m.speed,
+                                   resume=m if m.kind == "script" else None)
             self.motion = None
             if m.kind == "jog":
                 self.gstate = GS.IDLE
@@ -397,6 +401,11 @@ class Axis:
             elif c.kind == "clamp":
                 self.motion = Motion("snap", None, None, c.target, c.speed, c.direction)
                 self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
+            elif c.kind == "press" and c.resume is not None and self.motion is None:
+                m = self.motion = c.resume
+                v = max(m.speed, self.profile.min_speed)
+                self.traj = (plan_velocity(now, x, 0.0, m.direction * v, self.acceleration) if m.velocity_mode
+                             else plan_move(now, x, m.target, v, self.acceleration))
             elif c.kind == "stall" and self.motion is not None:  # the release goes on to its width
                 self.motion.stalled = False
                 self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
@@ -454,7 +463,7 @@ class Axis:
         v = min(abs(velocity), self.profile.max_speed)
         target = self.profile.stroke if d > 0 else 0.0
         f = self.force_limit if force is None else force
-        self.start(now, Motion("script", None, None, target, v, d, force=f),
+        self.start(now, Motion("script", None, None, target, v, d, force=f, velocity_mode=True),
                    plan_velocity(now, self.traj.position(now), self.traj.velocity(now), d * v, self.acceleration))
         return True
 

@@ -512,9 +512,10 @@ class DeviceCore:
             self.notify()
         return S.E_SUCCESS
 
-    def script_move(self, width: float, speed: float) -> Status:
-        """Script ``mc.move``: position to ``width`` mm at ``speed`` mm/s (a running motion is replaced)."""
-        now = self.clock()
+    def script_move(self, width: float, speed: float, now: float | None = None) -> Status:
+        """Script ``mc.move``: position to ``width`` mm at ``speed`` mm/s (a running script motion is
+        replaced, from its current speed). ``now``: the request's clock reading (one per request)."""
+        now = self.clock() if now is None else now
         self.advance(now)
         denied = self.motion_denied(now, replaces=("script",))
         if denied is not None:
@@ -525,9 +526,10 @@ class DeviceCore:
         self.notify()
         return S.E_SUCCESS
 
-    def script_speed(self, velocity: float, force: float | None = None) -> Status:
-        """Script ``mc.speed``: run at ``velocity`` mm/s (signed; 0 stops) until blocked."""
-        now = self.clock()
+    def script_speed(self, velocity: float, force: float | None = None, now: float | None = None) -> Status:
+        """Script ``mc.speed``: run at ``velocity`` mm/s (signed; 0 stops) until blocked, then press with
+        ``force`` N (None: the force limit). ``now``: the request's clock reading."""
+        now = self.clock() if now is None else now
         self.advance(now)
         if abs(velocity) < SPEED_EPS:
             if self.axis.script_halt(now):
@@ -543,8 +545,9 @@ class DeviceCore:
             self.notify()
         return S.E_SUCCESS
 
-    def script_stop(self) -> None:
-        now = self.clock()
+    def script_stop(self, now: float | None = None) -> None:
+        """Script ``mc.stop``: a script motion stops, pressing ends, the BLOCKED flags clear."""
+        now = self.clock() if now is None else now
         self.advance(now)
         self.axis.script_stop(now)
         self.reschedule(now)

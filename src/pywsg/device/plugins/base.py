@@ -31,11 +31,11 @@ class ScriptHost(Protocol):
 
     def blocked(self) -> bool: ...
 
-    def script_move(self, width: float, speed: float) -> Status: ...
+    def script_move(self, width: float, speed: float, now: float | None = None) -> Status: ...
 
-    def script_speed(self, velocity: float, force: float | None = None) -> Status: ...
+    def script_speed(self, velocity: float, force: float | None = None, now: float | None = None) -> Status: ...
 
-    def script_stop(self) -> None: ...
+    def script_stop(self, now: float | None = None) -> None: ...
 
 
 class FirmwarePlugin:
@@ -45,7 +45,8 @@ class FirmwarePlugin:
     request frame immediately; motion goes through the gripper's script motion API
     (:meth:`ScriptHost.script_move`, :meth:`~ScriptHost.script_speed`,
     :meth:`~ScriptHost.script_stop`), readings through ``width``/``speed``/``force``/``system_flags``.
-    ``on_if_changed`` is called when the fieldbus IF user flags change.
+    ``on_if_changed`` is called when the fieldbus IF user flags change. Pass the request's ``now`` on to
+    every call: one clock reading per request, so a reply describes the motion it just commanded.
     """
 
     name: ClassVar[str] = "plugin"

@@ -33,7 +33,7 @@ class UmiMeasurePlugin(FirmwarePlugin):
             vel = gripper.speed(now)
             act_vel = kp * (pos_cmd - pos) + kd * (vel_cmd - vel)
             force = blocked_force if gripper.blocked() else travel_force
-            gripper.script_speed(act_vel, force=force)
+            gripper.script_speed(act_vel, force=force, now=now)  # one clock reading per request
         state = int(gripper.system_flags(now)) & 0xFF
         return Frame.reply(command_id, Status.E_SUCCESS,
                            REPLY.pack(state, gripper.width(now), gripper.speed(now), gripper.force(now), now))
