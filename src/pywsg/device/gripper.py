@@ -256,8 +256,9 @@ class VirtualGripper(DeviceCore):
         self.advance(now)
         streams = self.streams
         out = streams.take(s) if streams.outbox else []
-        if s.denied or s.announced:
-            status = S.E_ACCESS_DENIED
+        if s.denied or s.announced or s.closed:  # refused: answered, and nothing of the device changes
+            out.append(Frame.reply(command_id, S.E_ACCESS_DENIED))
+            return out
         self._bits |= _SF_CMD_FAILURE
         out.append(Frame.reply(command_id, status))
         self.changed()
@@ -274,21 +275,20 @@ class VirtualGripper(DeviceCore):
         cid = frame.command_id
         payload = frame.payload
         if s.denied or s.announced or s.closed:
-            reply = Frame.reply(cid, S.E_ACCESS_DENIED)
+            # a refused client (a second TCP client, or one after 07h) is answered E_ACCESS_DENIED and
+            # touches nothing: not SF_CMD_FAILURE, which belongs to the controlling client
+            out.append(Frame.reply(cid, S.E_ACCESS_DENIED))
+            return out
+        entry = self._dispatch.get(cid)
+        if entry is None:
+            plugin = self._plugin_cmds.get(cid)
+            reply = Frame.reply(cid, S.E_CMD_UNKNOWN) if plugin is None else plugin.handle(self, s, cid, payload, now)
         else:
-            entry = self._dispatch.get(cid)
-            if entry is None:
-                plugin = self._plugin_cmds.get(cid)
-                if plugin is None:
-                    reply = Frame.reply(cid, S.E_CMD_UNKNOWN)
-                else:
-                    reply = plugin.handle(self, s, cid, payload, now)
+            handler, size, length_status = entry
+            if size is not None and len(payload) != size and cid != Command.FAST_STOP:
+                reply = Frame.reply(cid, length_status)
             else:
-                handler, size, length_status = entry
-                if size is not None and len(payload) != size and cid != Command.FAST_STOP:
-                    reply = Frame.reply(cid, length_status)
-                else:
-                    reply = handler(s, payload, now)
+                reply = handler(s, payload, now)
         if streams.outbox:
             out.extend(streams.take(s))
         out.append(reply)
