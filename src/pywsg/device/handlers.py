@@ -69,10 +69,13 @@ def disconnect(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 # 3.2 motion control
 
-def _check_width(cid: int, width: float, speed: float) -> Frame | None:
+def _refused(g: DeviceCore, cid: int, width: float, speed: float, now: float) -> Frame | None:
+    """The immediate errors 21h, 25h and 26h share: a NaN or infinite width or speed, then FAST STOP
+    (E_ACCESS_DENIED), a motion running (E_ALREADY_RUNNING), not referenced (E_NOT_INITIALIZED)."""
     if not (math.isfinite(width) and math.isfinite(speed)):
         return Frame.reply(cid, S.E_INVALID_PARAMETER)
-    return None
+    denied = g.motion_denied(now)
+    return None if denied is None else Frame.reply(cid, denied)
 
 
 def homing(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
@@ -99,12 +102,9 @@ def homing(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 def preposition(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     flags, width, speed = _PREPOS.unpack(payload)
-    bad = _check_width(0x21, width, speed)
-    if bad is not None:
-        return bad
-    denied = g.motion_denied(now)
-    if denied is not None:
-        return Frame.reply(0x21, denied)
+    refused = _refused(g, 0x21, width, speed, now)
+    if refused is not None:
+        return refused
     axis = g.axis
     x = axis.traj.position(now)
     target = x + width if flags & PrepositionFlag.RELATIVE else width
@@ -148,12 +148,9 @@ def acknowledge(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 def grip(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     width, speed = _GRIP.unpack(payload)
-    bad = _check_width(0x25, width, speed)
-    if bad is not None:
-        return bad
-    denied = g.motion_denied(now)
-    if denied is not None:
-        return Frame.reply(0x25, denied)
+    refused = _refused(g, 0x25, width, speed, now)
+    if refused is not None:
+        return refused
     axis = g.axis
     if axis.soft_range_error(width):
         return Frame.reply(0x25, S.E_RANGE_ERROR)
@@ -185,12 +182,9 @@ def grip(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 def release(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     width, speed = _RELEASE.unpack(payload)
-    bad = _check_width(0x26, width, speed)
-    if bad is not None:
-        return bad
-    denied = g.motion_denied(now)
-    if denied is not None:
-        return Frame.reply(0x26, denied)
+    refused = _refused(g, 0x26, width, speed, now)
+    if refused is not None:
+        return refused
     axis = g.axis
     target = min(max(width, 0.0), g.profile.stroke)
     if axis.soft_range_error(target):
