@@ -132,6 +132,10 @@ class AsyncGripper(AsyncCommands):
             elif ep.scheme == "udp":
                 self._transport = await UdpTransport.connect(ep, self._on_datagram, self._on_lost,
                                                              self.connect_timeout)
+            elif ep.scheme == "can":
+                from .can_transport import CanTransport
+
+                self._transport = await CanTransport.connect(ep, self._on_data, self._on_lost, self.connect_timeout)
             else:
                 self._transport = await SerialTransport.connect(ep, self._on_data, self._on_lost,
                                                                 self.connect_timeout)
