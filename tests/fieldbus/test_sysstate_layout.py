@@ -14,7 +14,10 @@ import time
 from collections.abc import AsyncIterator
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from pywsg.fieldbus.plc import GrippingCycle, WsgReceive
 from pywsg.fieldbus.profibus import diagnosis_message
 from pywsg.server import SimServer
 from pywsg.web.fieldbus_view import fieldbus_view
@@ -127,3 +130,25 @@ async def test_every_view_agrees_under_fast_stop(sim: SimServer) -> None:
     msg = diagnosis_message(flags)
     assert msg[7:11] == data[2:6]
     assert s7_bools(msg[7:11], SYSSTATE) == sysstate
+
+
+@given(st.binary(min_size=12, max_size=12))
+def test_the_plc_demo_reads_the_struct_like_an_s7(data: bytes) -> None:
+    """`wsg plc-demo`'s WSG_RECEIVE port agrees with the independent decoder on any 12 bytes."""
+    ours = WsgReceive.from_bytes(data)
+    theirs = s7_receive(data)
+    assert {n: getattr(ours.STW1, n) for n in STW1} == theirs["STW1"]
+    assert {n: getattr(ours.SYSSTATE, n) for n in SYSSTATE} == theirs["SYSSTATE"]
+    assert (theirs["WIDTH"], theirs["FORCE"], theirs["ERROR_CODE"]) == (ours.WIDTH, ours.FORCE, ours.ERROR_CODE)
+
+
+@pytest.mark.parametrize(("sysstate", "next_state"), [
+    (bytes([0x01, 0, 0, 0]), 3),      # REFERENCED = byte 2 bit 0: the listing goes on to step 3
+    (bytes([0, 0, 0, 0x01]), -1),     # the old big-endian word: REFERENCED false, error path
+])
+def test_listing_step_2_checks_referenced_in_byte_2_bit_0(sysstate: bytes, next_state: int) -> None:
+    """002 App. D step 2: ``IF #receive.STW1.IDLE = true THEN IF #receive.SYSSTATE.REFERENCED = false
+    THEN #state := -1``."""
+    cycle = GrippingCycle(state=2)
+    cycle.step(WsgReceive.from_bytes(bytes([0x01, 0]) + sysstate + bytes(6)), 0.0)
+    assert cycle.state == next_state
