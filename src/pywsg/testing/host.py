@@ -19,6 +19,7 @@ on that loop: device state is only touched there. Several SimThreads may share o
 from __future__ import annotations
 
 import asyncio
+import functools
 import threading
 from collections.abc import Callable, Coroutine
 from concurrent.futures import Future
@@ -30,7 +31,7 @@ from ..server.sim import SimGripper, SimOptions, SimServer
 from .scenario import Scenario, ScenarioRunner, drive_realtime, tap
 from .world import apply, world_state
 
-__all__ = ["LoopThread", "SimThread", "World"]
+__all__ = ["LoopThread", "SimThread", "World", "setup_world"]
 
 S = TypeVar("S", bound="SimThread")
 T = TypeVar("T")
@@ -132,6 +133,47 @@ class World:
         return self._host.call(lambda: _step(sg, clock, clock.now + dt, runner))
 
 
+def _cancel(task: asyncio.Task[None]) -> None:
+    task.cancel()
+
+
+def setup_world(sim: SimServer, *, part: float | None = None, block: float | None = None,
+                scenario: Scenario | None = None, runners: dict[int, ScenarioRunner] | None = None,
+                realtime: bool = True, on_action: Callable[[int, float, str], None] | None = None
+                ) -> Callable[[], None]:
+    """Prepare every gripper of a started ``sim`` (call on its loop): a part of ``part`` mm between the
+    fingers, an obstacle at ``block`` mm, and ``scenario`` running (its actions reported through
+    ``on_action(gripper index, t, text)``; timed actions on the loop when ``realtime``, else through
+    :meth:`World.advance`). Returns a function that stops the scenarios. Raises WorldError."""
+    undo: list[Callable[[], None]] = []
+    for sg in sim.grippers:
+        g: Any = sg.gripper
+        if part is not None:
+            apply(g, "part", {"width": part})
+        if block is not None:
+            apply(g, "block", {"width": block})
+        if scenario is None:
+            continue
+        report: Callable[[float, str], None] | None = None
+        if on_action is not None:
+            def report(t: float, text: str, i: int = sg.index, fn: Callable[[int, float, str], None] = on_action
+                       ) -> None:
+                fn(i, t, text)
+        runner = ScenarioRunner(scenario, g, start=g.clock(), on_action=report)
+        if runners is not None:
+            runners[sg.index] = runner
+        undo.append(tap(g, runner))
+        if realtime:
+            task = asyncio.get_running_loop().create_task(drive_realtime(runner, g.clock))
+            undo.append(functools.partial(_cancel, task))
+
+    def stop() -> None:
+        for fn in reversed(undo):
+            fn()
+
+    return stop
+
+
 def _step(sg: SimGripper, clock: ManualClock, end: float, runner: ScenarioRunner | None) -> float:
     """Advance to ``end`` through every due time in between (device events, scenario actions)."""
     g = sg.gripper
@@ -182,7 +224,6 @@ class SimThread:
         self._loop_thread = loop
         self.sim = SimServer(self.options)
         self._undo: list[Callable[[], None]] = []
-        self._tasks: list[asyncio.Task[None]] = []
         self.world = World(self)
 
     @property
@@ -203,15 +244,8 @@ class SimThread:
 
     async def _start(self) -> None:
         await self.sim.start()
-        if self.scenario is None:
-            return
-        for sg in self.sim.grippers:
-            g: Any = sg.gripper
-            runner = ScenarioRunner(self.scenario, g, start=g.clock())
-            self.scenario_runners[sg.index] = runner
-            self._undo.append(tap(g, runner))
-            if self.clock is None:
-                self._tasks.append(asyncio.create_task(drive_realtime(runner, g.clock)))
+        self._undo.append(setup_world(self.sim, scenario=self.scenario, runners=self.scenario_runners,
+                                      realtime=self.clock is None))
 
     def run(self, coro: Coroutine[Any, Any, T], timeout: float | None = 10) -> T:
         """Run ``coro`` on the server's loop and return its result."""
@@ -224,8 +258,6 @@ class SimThread:
         return self._loop_thread.call(fn, timeout)
 
     async def _stop(self) -> None:
-        for task in self._tasks:
-            task.cancel()
         for undo in self._undo:
             undo()
         await self.sim.close(save=self.save_on_stop)

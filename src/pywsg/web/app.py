@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from .. import __version__
 from ..protocol import CATALOG, Command, DeviceType, Frame, HomingDirection, Status
+from . import world_api
 from .fieldbus_view import fieldbus_view
 from .reference import catalog_json, command_reference_html
 from .security import COOKIE_NAME, CSRF_FIELD, CSRF_HEADER, Auth, WebSession, is_loopback_host
@@ -383,6 +384,8 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     async def _check(request: Request, s: WebSession,
                      call_next: Callable[[Request], Awaitable[Response]]) -> Response:
         path = request.url.path
+        if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules (world_api.guard)
+            return world_api.guard(request, ctx.auth) or await call_next(request)
         public = path.startswith("/static/") or path == "/login"
         if not public and not ctx.auth.may_read(s):
             if path.startswith("/api/") or request.method not in SAFE_METHODS:
@@ -405,6 +408,7 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
 
     _add_pages(app, ctx)
     _add_api(app, ctx)
+    app.include_router(world_api.router)
     _add_websocket(app, ctx)
     return app
 
