@@ -283,6 +283,10 @@ class SimThread:
     @property
     def g(self) -> SimGripper:
         """Gripper 0's :class:`~pywsg.server.sim.SimGripper` (ports, runner, device)."""
+        return self._sg
+
+    @property
+    def _sg(self) -> SimGripper:
         return self.sim.grippers[0]
 
     @property
@@ -293,14 +297,14 @@ class SimThread:
     @property
     def url(self) -> str:
         """``tcp://127.0.0.1:PORT`` for :class:`pywsg.client.Gripper` and ``wsg --url``."""
-        url = self.g.tcp_url
+        url = self._sg.tcp_url
         if url is None:
             raise RuntimeError("TCP is off (tcp_port=None)")
         return url
 
     @property
     def udp_url(self) -> str:
-        url = self.g.udp_url
+        url = self._sg.udp_url
         if url is None:
             raise RuntimeError("UDP is off (udp_port=None)")
         return url
@@ -308,7 +312,7 @@ class SimThread:
     @property
     def serial_url(self) -> str:
         """``serial:///dev/pts/N``: a pseudo-terminal, opened on first use."""
-        sg = self.g
+        sg = self._sg
         if sg.serial is None:
             from ..server.serial_port import SerialServer
 
@@ -325,7 +329,7 @@ class SimThread:
     @property
     def modbus_port(self) -> int:
         """The Modbus/TCP fieldbus port on 127.0.0.1, started on first use."""
-        sg = self.g
+        sg = self._sg
         if sg.modbus is None:
             from ..fieldbus.modbus import serve_modbus
 
