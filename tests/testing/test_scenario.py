@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from pywsg.client import Gripper
+from pywsg.errors import WsgError
 from pywsg.protocol import GripperState
 from pywsg.testing import Scenario, ScenarioError, SimThread
 
@@ -52,16 +53,20 @@ def test_lost_part_story_is_the_same_every_time() -> None:
     assert removed[0] > placed[2] + 0.5
 
 
-def test_absolute_time_power_fault_and_recovery(tmp_path: Path) -> None:
+def test_absolute_time_power_fault_and_recovery() -> None:
     path = DOCS / "fast-stop-recovery.toml"
-    with SimThread(clock="manual", scenario=path, tcp_port=None) as sim:
+    with SimThread(clock="manual", scenario=path, tcp_port=None) as sim, Gripper(sim.udp_url) as g:
         sim.world.advance(9.999)
         assert sim.world.state()["fast_stop"] is False
         sim.world.advance(0.001)
         state = sim.world.state()
         assert state["fast_stop"] is True and "power" in state["faults"]  # 000 Appendix B SF_POWER_FAULT
+        with pytest.raises(WsgError):  # 000 §3.2.5: no acknowledge while the fault persists
+            g.acknowledge()
         sim.world.advance(2.0)
         assert "power" not in sim.world.state()["faults"]
+        g.acknowledge()
+        assert sim.world.state()["fast_stop"] is False
 
 
 def test_before_command_places_the_part_for_every_grip(tmp_path: Path) -> None:
@@ -96,3 +101,12 @@ def test_wsg_sim_scenario_runs_in_real_time(tmp_path: Path, sim_proc: type[SimPr
     sim.wait_for("temperature changed by +10")
     r = wsg("sim", "--scenario", str(_write(tmp_path, "[[event]]\nat = -1\ndo = 'unblock'\n")))
     assert r.returncode == 2 and "non-negative" in r.stderr
+
+
+def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
+    """The docs' example: the SCL demo cycle (002 Appendix D) against `wsg sim --scenario lost-part.toml`."""
+    sim = sim_proc("--scenario", str(DOCS / "lost-part.toml"), modbus=True)
+    r = wsg("plc-demo", "--port", str(sim.modbus_port), "--cycles", "3", timeout=90)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
+    sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
