@@ -100,3 +100,21 @@ def test_browsers_and_rebinding_hosts_are_refused(sim_proc: type[SimProc]) -> No
     assert _post(url, {"Host": "localhost"}) == 200
     # the browser pages' API still needs its CSRF token
     assert _post(sim.web + "/api/sim/part", {}) == 403
+
+
+def test_a_sim_with_a_password_needs_it(tmp_path: Path) -> None:
+    """Web password set (as on a sim bound beyond loopback): the world API wants it, wsg world sends it."""
+    from pywsg.testing import SimThread
+
+    with SimThread(web_port=0, web_options={"password": "s3cret"}) as sim:
+        web = f"http://127.0.0.1:{sim.sim.web_port}"
+        r = wsg("world", "--sim", web, "part", "20")
+        assert r.returncode == 1 and "password required" in r.stderr and "--password" in r.stderr
+        r = wsg("world", "--sim", web, "--password", "wrong", "part", "20")
+        assert r.returncode == 1 and "wrong password" in r.stderr
+        r = wsg("world", "--sim", web, "--password", "s3cret", "--json", "part", "20")
+        assert r.returncode == 0, r.stderr
+        assert json.loads(r.stdout)["state"]["part"] == 20.0
+        out = subprocess.run(["curl", "-s", "-u", ":s3cret", web + "/api/world"], capture_output=True, text=True,
+                             timeout=20)
+        assert json.loads(out.stdout)["part"] == 20.0  # HTTP Basic with any user name works too
