@@ -20,6 +20,9 @@ _SUBCOMMANDS: dict[str, str] = {
     "sim": "pywsg.cli.sim:sim",
     "plc-demo": "pywsg.cli.plc:plc_demo",
     "demo": "pywsg.cli.demo:demo",
+    "world": "pywsg.cli.world:world",
+    "proxy": "pywsg.cli.proxy:proxy",
+    "replay": "pywsg.cli.replay:replay",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"

@@ -33,7 +33,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, live, pages, sim_api
+from . import api, auth, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -83,6 +83,7 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     auth.install_guard(app, ctx)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
+    app.include_router(world_api.router)  # world control for scripts (wsg world, curl, pywsg.testing)
     return app
 
 
