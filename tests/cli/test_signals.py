@@ -19,7 +19,7 @@ from .conftest import WSG, Sim, run_wsg
 def _flags(sim: Sim) -> list[str]:
     r = run_wsg("--json", "flags", url=sim.udp_url)  # UDP: readable while another client holds TCP
     assert r.code == 0, r
-    flags: list[str] = r.json()["value"]
+    flags: list[str] = r.json()["flags"]
     return flags
 
 
