@@ -48,8 +48,12 @@ class Health:
 
     def next_crossing(self, now: float) -> float | None:
         """Clock time at which the temperature next crosses the warning or fault threshold."""
-        times = [t for t in (self.thermal.crossing(th, now) for th in (WARNING_C, FAULT_C)) if t is not None]
-        return min(times) if times else None
+        first = None
+        for threshold in (WARNING_C, FAULT_C):
+            t = self.thermal.crossing(threshold, now)
+            if t is not None and (first is None or t < first):
+                first = t
+        return first
 
     def update_temperature(self, now: float) -> bool:
         """Take the temperature state at ``now``; True if a temperature fault has just begun."""
