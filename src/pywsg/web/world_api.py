@@ -29,6 +29,7 @@ import base64
 import binascii
 import hmac
 import json
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -123,31 +124,22 @@ async def state(request: Request) -> JSONResponse:
     return JSONResponse(world_state(_gripper(request)))
 
 
-@router.post("/part")
-async def place_part(request: Request) -> JSONResponse:
-    return await _do(request, "part", True)
+def _route(action: str, with_body: bool) -> Callable[[Request], Awaitable[JSONResponse]]:
+    async def endpoint(request: Request) -> JSONResponse:
+        return await _do(request, action, with_body)
+
+    endpoint.__name__ = f"world_{action}"
+    return endpoint
 
 
-@router.delete("/part")
-async def remove_part(request: Request) -> JSONResponse:
-    return await _do(request, "remove_part", False)
-
-
-@router.post("/block")
-async def block(request: Request) -> JSONResponse:
-    return await _do(request, "block", True)
-
-
-@router.delete("/block")
-async def unblock(request: Request) -> JSONResponse:
-    return await _do(request, "unblock", False)
-
-
-@router.post("/fault")
-async def fault(request: Request) -> JSONResponse:
-    return await _do(request, "fault", True)
-
-
-@router.post("/heat")
-async def heat(request: Request) -> JSONResponse:
-    return await _do(request, "heat", True)
+# method, path, world action (pywsg.testing.world.apply), whether it takes a JSON body
+_ROUTES = (
+    ("POST", "/part", "part", True),
+    ("DELETE", "/part", "remove_part", False),
+    ("POST", "/block", "block", True),
+    ("DELETE", "/block", "unblock", False),
+    ("POST", "/fault", "fault", True),
+    ("POST", "/heat", "heat", True),
+)
+for _method, _path, _action, _body in _ROUTES:
+    router.add_api_route(_path, _route(_action, _body), methods=[_method])
