@@ -122,8 +122,8 @@ def test_replay_matches_the_same_gripper_and_finds_a_different_one(sim: SimThrea
         report = json.loads(r.stdout)
         assert report["matched"] is False
         assert any(d["what"] == "width" for d in report["differences"])
-    with SimThread() as fresh:  # a block in the way: the move fails with another status code
-        fresh.world.block(80.0)
+    with SimThread() as fresh:  # a power fault (FAST STOP): homing is refused, another status code
+        fresh.world.fault("power", True)
         r = wsg("replay", str(pcap), "--to", fresh.url)
         assert r.returncode == 1 and "status" in r.stdout
 

@@ -70,7 +70,7 @@ class LazyGroup(click.Group):
 @click.option(
     "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True,
     help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500]?reply_port=1501, "
-    "serial:///dev/ttyUSB0?baudrate=115200 (or set WSG_URL).",
+    "serial:///dev/ttyUSB0?baudrate=115200, can://can0?interface=socketcan (or set WSG_URL).",
 )
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
 @click.option("--log", "log_flag", is_flag=True,
