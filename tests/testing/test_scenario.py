@@ -110,3 +110,4 @@ def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     assert r.returncode == 0, r.stdout + r.stderr
     assert "1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
+
