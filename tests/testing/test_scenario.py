@@ -120,3 +120,15 @@ def test_wsg_sim_json_reports_scenario_actions_as_json(tmp_path: Path, sim_proc:
     line = sim.wait_for('"event": "scenario"')
     event = json.loads(line)
     assert event["gripper"] == 0 and event["action"].startswith("fingers blocked at 30 mm") and event["t"] >= 0.1
+
+
+def test_plc_demo_recovers_from_the_scenario_fast_stop(sim_proc: type[SimProc]) -> None:
+    """The docs' example: a 2 s power fault at t = 10 s (FAST STOP, 000 App. B SF_POWER_FAULT) in
+    whatever step it catches the SCL cycle (002 App. D); it acknowledges, homes and finishes."""
+    sim = sim_proc("--part", "22", "--scenario", str(DOCS / "fast-stop-recovery.toml"), modbus=True)
+    r = wsg("plc-demo", "--port", str(sim.modbus_port), "--cycles", "6", "--timeout", "50", timeout=90)
+    assert r.returncode == 0, r.stdout + r.stderr
+    sim.wait_for("power")  # the fault did strike during the run (t = 10 s; the demo takes longer)
+    done = r.stdout.strip().splitlines()[-1]
+    assert done.startswith("done: 6 cycle(s)") and "timed out" not in done, r.stdout[-3000:]
+    assert "0 error recovery" not in done

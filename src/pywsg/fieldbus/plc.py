@@ -376,10 +376,21 @@ class WsgReceive:
 class GrippingCycle:
     """The SCL ``GrippingCycle`` function block. Call :meth:`step` once per PLC scan.
 
-    Ported faithfully, with one robustness change: a step waiting for a *running* state
-    (POSITIONING, GRIPPING, RELEASING) also accepts the state that follows it, because a fast
-    virtual gripper can finish a short motion between two scans. ``state`` starts at 0 (homing);
-    the listing's initial -2 falls into the default branch, which restarts at step 3 without homing.
+    Ported faithfully, with three robustness changes (docs/fieldbus.md, docs/fidelity.md):
+
+    - a step waiting for a *running* state (POSITIONING, GRIPPING, RELEASING) also accepts the
+      state that follows it, because a fast virtual gripper can finish a short motion between two
+      scans;
+    - such a step treats a refused command (IDLE with an error STATUS CODE) like ERROR;
+    - every step that checks ``STW1.ERROR`` (1..10 and the default) goes to step −1 on
+      ``SYSSTATE.FAST_STOP`` too, doing nothing else in that scan. A FAST STOP sets the gripper
+      state to IDLE, not ERROR (002 §4.6), so the listing taken literally waits for ever in a step
+      that waits for a running state or for HOLDING; its error step −1 (STOP/ACK: "Acknowledge a
+      FAST STOP") is the recovery the listing provides. Steps −1 and 0 are the listing's: while a
+      fault refuses the acknowledge, −1 → 0 → 1 → −1 repeats, each time with a new STOP/ACK edge.
+
+    ``state`` starts at 0 (homing); the listing's initial -2 falls into the default branch, which
+    restarts at step 3 without homing.
     """
 
     config: CycleConfig = field(default_factory=CycleConfig)
@@ -392,13 +403,25 @@ class GrippingCycle:
     holds: int = 0
     no_part: int = 0
     log: Callable[[str], None] | None = None
+    # The last few transitions logged: a loop (-1 -> 0 -> 1 -> -1 while a fault refuses every
+    # command) is logged once, then summed up when something else happens.
+    _recent: list[str] = field(default_factory=list, repr=False)
+    _repeated: int = field(default=0, repr=False)
 
     def _set(self, on: CmdFlag = CmdFlag.NONE, off: CmdFlag = CmdFlag.NONE, **params: int) -> None:
         self.send = replace(self.send, cmdflags=(self.send.cmdflags | on) & ~off, **params)
 
     def _say(self, text: str) -> None:
-        if self.log is not None:
-            self.log(text)
+        if self.log is None:
+            return
+        if text in self._recent:
+            self._repeated += 1
+            return
+        if self._repeated:
+            self.log(f"        ... the steps above repeated ({self._repeated} more transitions)")
+            self._repeated = 0
+        self._recent = [*self._recent[-2:], text]
+        self.log(text)
 
     def step(self, receive: InputImage | WsgReceive, now: float) -> OutputImage:
         """One scan: read ``receive`` (as ``WSG_RECEIVE``), run the CASE, return the outputs to write."""
@@ -414,7 +437,12 @@ class GrippingCycle:
         # steps waiting for a running state treat that like ERROR instead of waiting forever.
         refused = stw1.IDLE and rcv.ERROR_CODE not in (Status.E_SUCCESS, Status.E_CMD_PENDING)
 
-        if state == -1:
+        if sysstate.FAST_STOP and state > 0:
+            # Port addition: a FAST STOP shows IDLE, not ERROR (002 §4.6), but is an error to
+            # acknowledge (App. B D12), which step -1 does. Like the listing's ERROR check, it replaces
+            # the step (with ERROR none of a step's IDLE / running-state conditions can hold either).
+            self.state = -1
+        elif state == -1:
             self.error_count += 1
             self._set(on=CmdFlag.STOP_ACK, off=CmdFlag.FASTSTOP | CmdFlag.GRIP | CmdFlag.HOMING
                       | CmdFlag.JOG_MINUS | CmdFlag.JOG_PLUS | CmdFlag.MOVE | CmdFlag.RELEASE)
