@@ -110,13 +110,29 @@ class Axis:
         # reference point"). The trajectory, targets and readings are in reported (referenced) mm;
         # obstacles and the mechanical end stops are where they physically are.
         self.offset = 0.0
-        self.gstate = GS.IDLE
+        self._gstate = GS.IDLE
+        # (old, new) for every gripper-state change while the device has state listeners, else None;
+        # the device hands them out when the call that made them is done (never mid-update).
+        self.transitions: list[tuple[GS, GS]] | None = None
         self.traj = Trajectory.rest(now, profile.stroke / 2)  # unknown position until homing
         self.motion: Motion | None = None
         self.contact: Contact | None = None
         self.bits = 0  # latched motion flags: AXIS_STOPPED, TARGET_POS_REACHED, BLOCKED_MINUS/PLUS
         self.obstacles: dict[str, Obstacle] = {}
         self.stats = [0, 0, 0]  # 42h: grips, no part, part lost
+
+    @property
+    def gstate(self) -> GS:
+        """The gripper state (41h)."""
+        return self._gstate
+
+    @gstate.setter
+    def gstate(self, value: GS) -> None:
+        old = self._gstate
+        if value != old:
+            self._gstate = value
+            if self.transitions is not None:
+                self.transitions.append((old, value))
 
     # ------------------------------------------------------------------ readings
 

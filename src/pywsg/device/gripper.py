@@ -25,6 +25,7 @@ from ..protocol import (
     Frame,
     FrameParser,
     FrameTooLarge,
+    GripperState,
     ParseError,
     Status,
     SystemFlag,
@@ -58,6 +59,10 @@ _REQUEST_CACHE_BYTES = 64
 
 # command ID -> (handler bound to the device, fixed request size or None, status for a wrong length)
 Dispatch = dict[int, tuple[Callable[[Session, bytes, float], Frame], int | None, Status]]
+#: ``fn(session, command_id)``: a request is about to be executed.
+CommandListener = Callable[[Session, int], None]
+#: ``fn(old, new)``: the gripper state (41h) changed.
+StateListener = Callable[[GripperState, GripperState], None]
 
 
 def _max_request(command_id: int) -> int:
@@ -92,6 +97,9 @@ class VirtualGripper(DeviceCore):
         # requests seen before, as their exact bytes (a polling client repeats them): parsed once.
         # Only frames with a valid checksum go in, so a hit is right whatever the CRC setting.
         self._requests: dict[bytes, Frame] = {}
+        self._command_listeners: list[CommandListener] = []
+        self._state_listeners: list[StateListener] = []
+        self._transitions: list[tuple[GripperState, GripperState]] = []  # the axis records, we report
         self.settings = settings
         self._power_up(settings)
 
@@ -104,8 +112,13 @@ class VirtualGripper(DeviceCore):
         self.settings = settings
         self.serial_number = settings.serial_number if settings.serial_number is not None else p.serial_number
         self.thermal = ThermalModel(now)
+        before = self.axis.gstate if hasattr(self, "axis") else GripperState.IDLE
         self.axis = Axis(self, p, self.log, self.thermal, now, settings.acceleration, settings.force_limit,
                          settings.clamping_travel)
+        if self._state_listeners:
+            self.axis.transitions = self._transitions
+            if before != GripperState.IDLE:  # a restart: the new axis starts IDLE
+                self._transitions.append((before, GripperState.IDLE))
         self._event = None
         self._bits = 0
         self.tag = None
@@ -184,6 +197,8 @@ class VirtualGripper(DeviceCore):
         if self.streams.close(s) and not s.announced and self.settings.fast_stop_on_disconnect:
             self.fast_stop(now, "unannounced disconnect of TCP client " + (s.peer or "?"))
         self.changed()
+        if self._transitions:
+            self._report_states()
 
     @property
     def sessions(self) -> list[Session]:
@@ -196,6 +211,48 @@ class VirtualGripper(DeviceCore):
     def remove_wakeup_listener(self, fn: Callable[[], None]) -> None:
         if fn in self.schedule.listeners:
             self.schedule.listeners.remove(fn)
+
+    def add_command_listener(self, fn: CommandListener) -> None:
+        """``fn(session, command_id)`` is called before each request is executed, from any interface
+        (TCP, UDP, serial, CAN, the fieldbus's own session), before the device catches up with the
+        clock. Not for refused sessions (a second TCP client, one after 07h): their frames change
+        nothing. ``fn`` may act on the device (place a part, raise a fault); the request then meets
+        that world. Exceptions from ``fn`` propagate to the caller of :meth:`handle_frame`."""
+        self._command_listeners.append(fn)
+
+    def remove_command_listener(self, fn: CommandListener) -> None:
+        if fn in self._command_listeners:
+            self._command_listeners.remove(fn)
+
+    def add_state_listener(self, fn: StateListener) -> None:
+        """``fn(old, new)`` is called for every change of the gripper state (41h), in order, also for
+        states that last no time at all (GRIPPING → HOLDING → PART_LOST within one :meth:`poll`).
+
+        Calls come when the :meth:`handle_frame`, :meth:`poll` or :meth:`close_session` that made the
+        change is done with the device, never in the middle of an update, so ``fn`` may act on the
+        device; ``self.clock()`` is the time. A change made by another call (fault injection,
+        :meth:`jog`, :meth:`reset_gripper_state`) is reported by the next of those three."""
+        self._state_listeners.append(fn)
+        self.axis.transitions = self._transitions
+
+    def remove_state_listener(self, fn: StateListener) -> None:
+        if fn in self._state_listeners:
+            self._state_listeners.remove(fn)
+        if not self._state_listeners:
+            self.axis.transitions = None
+            self._transitions.clear()
+
+    def _report_states(self) -> None:
+        """Hand the recorded state changes to the state listeners (changes they cause are next)."""
+        pending = self._transitions
+        for _ in range(10_000):  # bounded: listeners that keep changing the state cannot spin forever
+            if not pending:
+                return
+            batch = pending[:]
+            pending.clear()
+            for old, new in batch:
+                for fn in list(self._state_listeners):
+                    fn(old, new)
 
     # ------------------------------------------------------------------ byte / frame entry points
 
@@ -265,6 +322,9 @@ class VirtualGripper(DeviceCore):
 
     def handle_frame(self, s: Session, frame: Frame) -> list[Frame]:
         """Execute one request; returns the immediate replies (deferred ones come from :meth:`poll`)."""
+        if self._command_listeners and not (s.denied or s.announced or s.closed):
+            for fn in list(self._command_listeners):
+                fn(s, frame.command_id)
         now = self.clock()
         schedule = self.schedule
         if now >= schedule.next_event:
@@ -302,6 +362,8 @@ class VirtualGripper(DeviceCore):
             schedule.changed()
         if not schedule.due_valid:
             schedule.notify()
+        if self._transitions:
+            self._report_states()
         return out
 
     # ------------------------------------------------------------------ time: poll / next_due
@@ -315,6 +377,8 @@ class VirtualGripper(DeviceCore):
         now = self.clock()
         schedule = self.schedule
         if schedule.due_valid and (schedule.due_cache is None or now < schedule.due_cache):
+            if self._transitions:
+                self._report_states()
             return []
         self.advance(now)
         streams = self.streams
@@ -325,6 +389,8 @@ class VirtualGripper(DeviceCore):
             if s.deliver is not None and not s.closed:
                 s.deliver(f)
         schedule.due_valid = False
+        if self._transitions:
+            self._report_states()
         return due
 
     def next_due(self) -> float | None:

@@ -24,7 +24,8 @@ world action (:mod:`pywsg.testing.world`) at a time given in one of three ways::
 ``cycle = N`` picks the N-th occurrence of the trigger (1-based); without it every occurrence counts.
 Times are on the gripper's clock, so on a :class:`~pywsg.device.ManualClock` a scenario is exactly
 repeatable. The runner is sans-IO: a host calls :meth:`ScenarioRunner.run_due` when
-:meth:`ScenarioRunner.next_time` comes, and :func:`tap` reports commands and state changes.
+:meth:`ScenarioRunner.next_time` comes, and :func:`tap` reports commands and state changes (the
+device's command and state listeners).
 """
 
 from __future__ import annotations
@@ -214,8 +215,12 @@ class ScenarioRunner:
                 self._do(ev, now)
 
     def observe(self, now: float) -> None:
-        """Look at the gripper state; a change starts the ``after`` events for the new state."""
-        state = self.gripper.snapshot().gripper_state
+        """Look at the gripper state; a change starts the ``after`` events for the new state (for
+        hosts, after a timed action; :func:`tap` reports every change through the device)."""
+        self.state_changed(self.gripper.snapshot().gripper_state, now)
+
+    def state_changed(self, state: GripperState, now: float) -> None:
+        """The gripper state became ``state``: start the ``after`` events for it (once per change)."""
         if state == self._state:
             return
         self._state = state
@@ -238,36 +243,27 @@ class ScenarioRunner:
 
 
 def tap(gripper: Any, runner: ScenarioRunner) -> Callable[[], None]:
-    """Route ``gripper``'s requests and polls through ``runner``; returns a function that undoes it.
+    """Let ``runner`` hear ``gripper``'s requests and state changes; returns a function that undoes it.
 
-    Every request reaches the device through ``handle_frame`` (TCP, UDP, serial, CAN, fieldbus), and
-    every state change that time brings shows up in ``poll``, so these two instance methods are
-    wrapped. (A device-side command listener would make this wrapping unnecessary.)
+    Uses the device's listener API (docs/device.md): a command listener runs the ``before`` events
+    before each request is executed (from any interface), a state listener the ``after`` events on
+    each change of the gripper state (41h). Timed events are the host's to serve
+    (:func:`drive_realtime`, or the manual clock's ``World.advance``).
     """
     clock = gripper.clock
-    handle_frame = gripper.handle_frame
-    poll = gripper.poll
 
-    def tapped_frame(s: Any, frame: Any) -> Any:
-        runner.before_command(frame.command_id, clock())
-        out = handle_frame(s, frame)
-        runner.observe(clock())
-        return out
+    def on_command(_session: Any, command_id: int) -> None:
+        runner.before_command(command_id, clock())
 
-    def tapped_poll() -> Any:
-        out = poll()
-        now = clock()
-        runner.observe(now)
-        runner.run_due(now)
-        runner.observe(now)
-        return out
+    def on_state(_old: GripperState, new: GripperState) -> None:
+        runner.state_changed(new, clock())
 
-    gripper.handle_frame = tapped_frame
-    gripper.poll = tapped_poll
+    gripper.add_command_listener(on_command)
+    gripper.add_state_listener(on_state)
 
     def undo() -> None:
-        gripper.handle_frame = handle_frame
-        gripper.poll = poll
+        gripper.remove_command_listener(on_command)
+        gripper.remove_state_listener(on_state)
 
     return undo
 
