@@ -142,3 +142,28 @@ def test_replay_reads_json_lines_and_rejects_junk(sim: SimThread, tmp_path: Path
     junk.write_text("hello\n")
     r = wsg("replay", str(junk), "--to", sim.url)
     assert r.returncode == 2 and "not a JSON line" in r.stderr
+
+
+def test_replay_reconnects_after_a_recorded_disconnect(sim: SimThread, tmp_path: Path) -> None:
+    """000 §3.1.2: after 07h "New commands may be sent only after regular disconnection and
+    reconnection", and an announced close raises no FAST STOP. Replay closes and reconnects there, so
+    a recorded client that did the same matches; one that kept sending on the announced connection
+    (recorded E_ACCESS_DENIED) is reported as a difference (docs/fidelity.md)."""
+    from pywsg.testing.replay import replay
+
+    width = Frame(Command.GET_OPENING_WIDTH, b"\x00\x00\x00").encode()
+    bye = Frame(Command.DISCONNECT).encode()
+    polite, rude = tmp_path / "polite.jsonl", tmp_path / "rude.jsonl"
+    proxy = ProxyProc(sim.url, "--jsonl", str(polite), "-q")
+    _raw_exchange(proxy.port, [width, bye])
+    _raw_exchange(proxy.port, [width, Frame(Command.GET_SYSTEM_STATE, b"\x00\x00\x00").encode()])
+    proxy.stop()
+    proxy = ProxyProc(sim.url, "--jsonl", str(rude), "-q")
+    _raw_exchange(proxy.port, [width, bye, width])   # the third is refused: E_ACCESS_DENIED
+    proxy.stop()
+    with SimThread() as fresh:
+        report = replay(polite, fresh.url)
+        # step 4 (40h) matched the recorded flags: no SF_FAST_STOP after the announced close
+        assert report.steps == 4 and report.matched, report.differences
+        report = replay(rude, fresh.url)
+        assert [(d.step, d.what) for d in report.differences] == [(3, "status")]
