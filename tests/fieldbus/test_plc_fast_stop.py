@@ -14,35 +14,28 @@ from collections.abc import Callable
 
 import pytest
 
-from pywsg.device import ManualClock, VirtualGripper
-from pywsg.fieldbus.controller import FieldbusController
 from pywsg.fieldbus.plc import GrippingCycle
 from pywsg.protocol import CATALOG, Command, Frame, GripperState
+
+from .test_controller import Rig
 
 GS = GripperState
 SCAN = 0.002  # s, as `wsg plc-demo`
 
 
-class PlcRig:
+class PlcRig(Rig):
     """Virtual gripper with a 22 mm part, the fieldbus controller and the soft PLC, on one manual clock."""
 
     def __init__(self) -> None:
-        self.clock = ManualClock()
-        self.g = VirtualGripper("wsg50", clock=self.clock)
+        super().__init__()
         self.g.faults.place_part(22.0)
-        self.ctl = FieldbusController(self.g)
         self.log: list[str] = []
         self.cyc = GrippingCycle(log=self.log.append)
         self.visited: list[int] = []
 
     def advance(self, dt: float) -> None:
         """Let the gripper run ``dt`` s without a PLC scan."""
-        end = self.clock.now + dt
-        while (nd := self.g.next_due()) is not None and nd <= end:
-            self.clock.set(max(nd, self.clock.now))
-            self.g.poll()
-        self.clock.set(end)
-        self.g.poll()
+        self.run(dt)
 
     def scan(self) -> None:
         """One PLC scan: read the inputs, run the CASE, write changed outputs; then one scan time passes."""
