@@ -280,6 +280,7 @@ class SimServer:
             udp_port = _nth(opts.udp_port, i)
             if udp_port is not None:
                 sg.udp = await UdpServer(g, r, opts.host, udp_port, opts.udp_reply_port, opts.limits).start()
+                self._warn_reply_port(sg.udp, i)
         except OSError as exc:
             raise SimError(f"gripper {i}: cannot bind on {opts.host}: {exc.strerror or exc}") from exc
         if opts.serial:
@@ -311,6 +312,18 @@ class SimServer:
                 "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
+
+    def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
+        """A reply port that is a listen port of this sim: that gripper cannot answer local clients."""
+        opts = self.options
+        reply = opts.udp_reply_port
+        if reply is None or opts.udp_port in (None, 0):
+            return
+        if opts.udp_port <= reply < opts.udp_port + opts.count:
+            log.warning(
+                "gripper %d: UDP reply port %d is gripper %d's UDP port: local clients get no answer "
+                "(a reply loop is refused); use --udp-reply-port 0 (answer the sender's port) or a port "
+                "outside %d..%d", i, reply, reply - opts.udp_port, opts.udp_port, opts.udp_port + opts.count - 1)
 
     async def close(self, save: bool = True) -> None:
         """Stop every interface (sockets closed, sessions closed) and save the settings file."""
