@@ -146,7 +146,7 @@ def test_udp_datagrams_of_forged_headers_cost_one_answer_each(target: SimThread)
     try:
         while True:
             answers.append(attacker.sock.recvfrom(65536)[0])
-    except (TimeoutError, socket.timeout):
+    except TimeoutError:
         pass
     cpu = sim_cpu(target) - cpu0
     waits = waiter.finish()
@@ -162,7 +162,7 @@ def test_many_requests_in_one_datagram_get_one_answer(target: SimThread) -> None
     first = c.receive()
     assert first.command_id == 0x06 and first.params == b"\x00"
     c.sock.settimeout(0.3)
-    with pytest.raises((TimeoutError, socket.timeout)):
+    with pytest.raises(TimeoutError):
         c.sock.recvfrom(65536)
     c.close()
 
@@ -224,7 +224,7 @@ def test_a_reply_frame_is_never_answered(sim_factory: Callable[..., SimThread]) 
     c.send(Frame.reply(0x50, Status.E_CMD_FORMAT_ERROR).encode())  # 50h takes no request bytes
     c.send(Frame.reply(0x21, Status.E_SUCCESS).encode())  # 21h takes 8
     c.sock.settimeout(0.3)
-    with pytest.raises((TimeoutError, socket.timeout)):
+    with pytest.raises(TimeoutError):
         c.sock.recvfrom(65536)
     assert sim.call(lambda: sim.g.udp.ignored) == 2
     assert c.request(0x50).status == Status.E_SUCCESS  # a request is still answered
