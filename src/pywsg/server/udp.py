@@ -148,9 +148,8 @@ class UdpServer(asyncio.DatagramProtocol):
         t = self.transport
         if t is None:
             return
-        client = self.client
         for frame in replies:
-            t.sendto(frame.encode(), client)
+            t.sendto(frame.encode(), self.client)
 
     def error_received(self, exc: Exception) -> None:
         # ICMP port unreachable from a client that went away: nothing to do
