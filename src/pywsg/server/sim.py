@@ -306,8 +306,7 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                max_connections=opts.limits.modbus_connections,
+                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
@@ -316,7 +315,6 @@ class SimServer:
                 "sim_info": sg.info(),
                 "fieldbus": getattr(sg.modbus, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
-                "max_connections": opts.limits.web_connections,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
