@@ -118,7 +118,7 @@ def target(sim_factory: Callable[..., SimThread]) -> SimThread:
     ("complete frames with bad CRCs", loop_frame(b"x")[:-2] + b"\x00\x00"),
 ])
 def test_one_mebibyte_attack_costs_bounded_cpu_and_wait(target: SimThread, name: str, pattern: bytes) -> None:
-    """000 §1.2.1: each frame gets an answer; garbage candidates may not stall the process."""
+    """000 §1.2.2: each frame is acknowledged; garbage candidates may not stall the process."""
     base_cpu, base_wait, _ = tcp_attack(target, os.urandom(MIB))
     cpu, wait, replies = tcp_attack(target, repeat(pattern))
     assert cpu <= 0.5 + 2 * base_cpu, f"{name}: {cpu:.2f} s CPU for 1 MiB (random bytes: {base_cpu:.2f} s)"
@@ -133,7 +133,7 @@ def test_forged_headers_are_answered_rate_limited_not_per_candidate(target: SimT
 
 
 def test_udp_datagrams_of_forged_headers_cost_one_answer_each(target: SimThread) -> None:
-    """One frame per datagram (000 §1.2.3): a 65,507-byte datagram of forged headers gets one answer."""
+    """One frame per datagram (000 §1.1, §1.2; docs/fidelity.md): a 65,507-byte datagram of forged headers gets one answer."""
     waiter = Waiter(target.g.udp_port)
     waiter.start()
     attacker = UdpClient(target.g.udp_port)
