@@ -225,10 +225,13 @@ def test_a_datagram_from_its_own_port_is_not_answered(target: SimThread) -> None
     assert target.call(lambda: udp.ignored) == 1
 
 
-def test_count_2_default_shape_does_not_ping_pong(sim_factory: Callable[..., SimThread]) -> None:
+def test_count_2_default_shape_does_not_ping_pong(
+    sim_factory: Callable[..., SimThread], caplog: pytest.LogCaptureFixture
+) -> None:
     """wsg sim --count 2 with listen P and reply port P+1 (= gripper 1's port): one 50h, no exchange."""
     p = free_udp_pair()
     sim = sim_factory(tcp_port=None, udp_port=p, udp_reply_port=p + 1, count=2)
+    assert [r for r in caplog.records if "reply loop" in r.getMessage()], "no start-up warning"
     c = UdpClient(p)
     c.send(Frame(0x50).encode())
     c2 = UdpClient(p + 1)

@@ -314,16 +314,17 @@ class SimServer:
             sg.web_port = _bound_port(sg.web) or web_port
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
-        """A reply port that is a listen port of this sim: that gripper cannot answer local clients."""
+        """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
         opts = self.options
         reply = opts.udp_reply_port
-        if reply is None or opts.udp_port in (None, 0):
+        if i != 0 or reply is None or opts.udp_port in (None, 0):
             return
         if opts.udp_port <= reply < opts.udp_port + opts.count:
             log.warning(
-                "gripper %d: UDP reply port %d is gripper %d's UDP port: local clients get no answer "
-                "(a reply loop is refused); use --udp-reply-port 0 (answer the sender's port) or a port "
-                "outside %d..%d", i, reply, reply - opts.udp_port, opts.udp_port, opts.udp_port + opts.count - 1)
+                "UDP reply port %d is gripper %d's own UDP port: a gripper never sends to a UDP port of its "
+                "own process (a reply loop), so UDP clients on this host get no answer; use "
+                "--udp-reply-port 0 (answer the sender's port) or a port outside %d..%d",
+                reply, reply - opts.udp_port, opts.udp_port, opts.udp_port + opts.count - 1)
 
     async def close(self, save: bool = True) -> None:
         """Stop every interface (sockets closed, sessions closed) and save the settings file."""
