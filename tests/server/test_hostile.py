@@ -3,20 +3,21 @@
 Each attack is sent exactly as found, and its cost is compared with the cost of the same number of
 random bytes measured in the same test: server CPU (the sim thread's own CPU time, not wall time,
 so a loaded machine does not flake it) and the wait of another client of the same process.
-Bounds: 1 MiB costs at most 0.5 s of server CPU (plus twice the random baseline), and the other
-client's slowest answer stays within 100 ms plus three times its slowest answer under random bytes
-(the target is 50 ms, met with room in benchmarks/bench_abuse.py where the sim has its own process;
-here test threads share its GIL on a loaded 2-core machine. Before this change it was seconds.)
+The 1 MiB attacks run against ``wsg sim`` in its own process. Bounds: 1 MiB costs at most 0.5 s of
+server CPU (plus twice the random baseline), and the other client's slowest answer stays within 50 ms
+plus three times its slowest answer under random bytes or under 1 MiB of valid requests (a busy sim
+is scheduled out now and then on a loaded 2-core machine; before this change the wait was seconds).
 """
 
 from __future__ import annotations
 
-import gc
 import os
 import socket
+import subprocess
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import psutil
 import pytest
@@ -24,6 +25,7 @@ import pytest
 from pywsg.protocol import Frame, Status
 
 from .conftest import SimThread, UdpClient, loop_frame
+from .test_cli_sim import free_base
 
 MIB = 1 << 20
 FORGED_1K = b"\xaa\xaa\xaa\x99\x00\x04"  # unknown ID 99h announcing 1 KiB: every one a CRC candidate
@@ -73,20 +75,52 @@ def sim_cpu(sim: SimThread) -> float:
     return float(sim.call(time.thread_time))
 
 
-def tcp_attack(sim: SimThread, blob: bytes, second: bool = False) -> tuple[float, float, int]:
+class SimProcess:
+    """``wsg sim`` (TCP + UDP) in its own process, as the attacks were measured: the test's client
+    threads do not share its GIL, and its CPU time is its own."""
+
+    def __init__(self) -> None:
+        base = free_base(2)
+        self.tcp_port, self.udp_port = base, base + 1
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(base),
+             "--udp-port", str(base + 1), "--udp-reply-port", "0", "--serial", "off", "--web-port", "0",
+             "--no-uvloop"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        assert self.proc.stdout is not None
+        for _ in range(2):
+            assert self.proc.stdout.readline(), "wsg sim did not start"
+        self.ps = psutil.Process(self.proc.pid)
+
+    def cpu(self) -> float:
+        t = self.ps.cpu_times()
+        return float(t.user + t.system)
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(10)
+
+
+@pytest.fixture(scope="module")
+def sim_process() -> Iterator[SimProcess]:
+    sim = SimProcess()
+    yield sim
+    sim.close()
+
+
+def tcp_attack(sim: SimProcess, blob: bytes, second: bool = False) -> tuple[float, float, int]:
     """Send ``blob`` on one TCP connection, then a marker frame; returns (server CPU s, worst wait
     of the other client s, replies received). Replies are drained by a reader thread. ``second``:
     another client holds control, the attacker is a refused second client."""
-    waiter = Waiter(sim.g.udp_port)
+    waiter = Waiter(sim.udp_port)
     waiter.start()
     holder = None
     if second:
-        holder = socket.create_connection(("127.0.0.1", sim.g.tcp_port))
+        holder = socket.create_connection(("127.0.0.1", sim.tcp_port))
         holder.sendall(loop_frame(b"hold"))
         holder.recv(64)
     time.sleep(0.05)
-    cpu0 = sim_cpu(sim)
-    sock = socket.create_connection(("127.0.0.1", sim.g.tcp_port))
+    cpu0 = sim.cpu()
+    sock = socket.create_connection(("127.0.0.1", sim.tcp_port))
     marker = loop_frame(b"marker!")
     answer = Frame.reply(0x06, Status.E_ACCESS_DENIED) if second else Frame.reply(0x06, Status.E_SUCCESS, b"marker!")
     got = bytearray()
@@ -107,7 +141,7 @@ def tcp_attack(sim: SimThread, blob: bytes, second: bool = False) -> tuple[float
     sock.sendall(blob)
     sock.sendall(b"\x00" * 2100 + marker)  # completes any header left waiting, then a real frame
     assert done.wait(60), "the attacking connection never got its marker answered"
-    cpu = sim_cpu(sim) - cpu0
+    cpu = sim.cpu() - cpu0
     sock.sendall(Frame(0x07).encode())  # announced disconnect: no FAST STOP
     time.sleep(0.05)
     sock.close()
@@ -133,25 +167,26 @@ def target(sim_factory: Callable[..., SimThread]) -> SimThread:
     ("complete frames with bad CRCs", loop_frame(b"x")[:-2] + b"\x00\x00", False),
 ])
 def test_one_mebibyte_attack_costs_bounded_cpu_and_wait(
-    target: SimThread, name: str, pattern: bytes, second: bool
+    sim_process: SimProcess, name: str, pattern: bytes, second: bool
 ) -> None:
     """000 §1.2.2: each frame is acknowledged; garbage candidates may not stall the process."""
-    gc.collect()
-    gc.freeze()  # the test process holds far more objects than a `wsg sim`: keep its full GCs out of the wait
-    base_cpu, base_wait, _ = tcp_attack(target, os.urandom(MIB), second)
-    rss0 = psutil.Process().memory_info().rss
-    cpu, wait, replies = tcp_attack(target, repeat(pattern), second)
-    rss = psutil.Process().memory_info().rss - rss0
+    base_cpu, base_wait, _ = tcp_attack(sim_process, os.urandom(MIB), second)
+    # A sim kept busy is scheduled out now and then on a loaded machine, whatever it parses: the wait
+    # is also compared with 1 MiB of valid requests, legitimate load that keeps it as busy.
+    _, legit_wait, _ = tcp_attack(sim_process, repeat(loop_frame(b"x")), second)
+    rss0 = sim_process.ps.memory_info().rss
+    cpu, wait, replies = tcp_attack(sim_process, repeat(pattern), second)
+    rss = sim_process.ps.memory_info().rss - rss0
     assert cpu <= 0.5 + 2 * base_cpu, f"{name}: {cpu:.2f} s CPU for 1 MiB (random bytes: {base_cpu:.2f} s)"
-    gc.unfreeze()
-    assert wait <= 0.1 + 3 * base_wait, f"{name}: another client waited {wait * 1e3:.0f} ms " \
-        f"(random bytes: {base_wait * 1e3:.0f} ms)"
+    bound = 0.05 + 3 * max(base_wait, legit_wait)
+    assert wait <= bound, f"{name}: another client waited {wait * 1e3:.0f} ms (random bytes: " \
+        f"{base_wait * 1e3:.0f} ms, valid requests: {legit_wait * 1e3:.0f} ms)"
     assert replies >= 1  # the attacker itself is still answered (and got its marker)
     assert rss < 16e6, f"{name}: RSS grew {rss / 1e6:.1f} MB"  # the parser holds one frame at most
 
 
-def test_forged_headers_are_answered_rate_limited_not_per_candidate(target: SimThread) -> None:
-    _, _, replies = tcp_attack(target, repeat(FORGED_1K))
+def test_forged_headers_are_answered_rate_limited_not_per_candidate(sim_process: SimProcess) -> None:
+    _, _, replies = tcp_attack(sim_process, repeat(FORGED_1K))
     assert replies < MIB // len(FORGED_1K) // 20  # was one E_CHECKSUM_ERROR per 6 bytes
 
 
@@ -164,13 +199,14 @@ def test_udp_datagrams_of_forged_headers_cost_one_answer_each(target: SimThread)
     blob = repeat(FORGED_1K, 65507)
     for _ in range(16):  # ~1 MiB
         attacker.send(blob)
+    attacker.send(loop_frame(b"marker!"))  # answered after every datagram before it
     answers = []
-    attacker.sock.settimeout(1.0)
-    try:
-        while True:
-            answers.append(attacker.sock.recvfrom(65536)[0])
-    except TimeoutError:
-        pass
+    attacker.sock.settimeout(60)
+    while True:
+        data = attacker.sock.recvfrom(65536)[0]
+        if data == Frame.reply(0x06, Status.E_SUCCESS, b"marker!").encode():
+            break
+        answers.append(data)
     cpu = sim_cpu(target) - cpu0
     waits = waiter.finish()
     assert len(answers) <= 16  # was 10,747 per datagram
