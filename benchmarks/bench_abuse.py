@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import random
 import socket
 import subprocess
 import sys
@@ -31,31 +30,12 @@ import time
 from collections.abc import Callable
 
 import psutil
+from bench_transport import free_base  # run from benchmarks/ as a script, like its siblings
 
 from pywsg.protocol import Frame, FrameParser, Status
 
 MIB = 1 << 20
 PY = sys.executable
-
-
-def free_base(n: int) -> int:
-    """A port p such that p..p+n-1 are free for TCP and UDP on 127.0.0.1."""
-    for _ in range(200):
-        base = random.randint(20000, 40000)
-        socks = []
-        try:
-            for i in range(n):
-                for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
-                    s = socket.socket(socket.AF_INET, kind)
-                    socks.append(s)
-                    s.bind(("127.0.0.1", base + i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no free port range")
 
 
 class Sim:
