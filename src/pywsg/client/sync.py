@@ -12,6 +12,7 @@ import logging
 import queue
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
@@ -28,7 +29,7 @@ from ..protocol import (
     SystemFlag,
     parse_datagram,
 )
-from . import calls
+from . import calls, lifetime
 from .calls import Call
 from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
@@ -134,11 +135,14 @@ class Gripper(Commands):
             self._partial = False
             self._transport = t
             self._closing = False
+        lifetime.opened(self)
         log.debug("connected to %s", self.endpoint)
 
     def close(self) -> None:
-        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close."""
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
+        A gripper still open when the interpreter exits is closed this way too (see docs/driver.md)."""
         self._closing = True
+        lifetime.closed(self)
         if self._transport is not None and self.endpoint.scheme == "tcp":
             try:
                 self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
@@ -151,6 +155,20 @@ class Gripper(Commands):
             if self._cb_thread is not threading.current_thread():
                 self._cb_thread.join(2.0)
             self._cb_thread = None
+
+    def _close_at_exit(self) -> None:
+        if self._transport is not None:
+            self.close()
+
+    def __del__(self) -> None:
+        t = getattr(self, "_transport", None)
+        if t is None:  # closed, never connected, or __init__ failed
+            return
+        warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
+                      "call close() or use 'with Gripper(...) as g'", ResourceWarning, stacklevel=1, source=self)
+        if self.endpoint.scheme == "tcp":
+            lifetime.announce_on_socket(getattr(t, "sock", None))
+        t.close()
 
     def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
