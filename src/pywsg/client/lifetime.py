@@ -1,7 +1,7 @@
 """Grippers left open: announced at a clean interpreter exit, warned about when garbage-collected.
 
 A WSG raises FAST STOP when a TCP connection closes without the disconnect announcement (07h,
-000 §3.1.2): a lost connection must stop the fingers. A script that simply ends without ``close()``
+000 §1.4.2, §3.1.2): a lost connection must stop the fingers. A script that simply ends without ``close()``
 is not a lost connection, so every gripper still open when the interpreter exits cleanly is
 closed here the normal way (07h, then close). A gripper garbage-collected while open gets a
 ``ResourceWarning`` (like an unclosed file; shown with ``python -W default`` or ``-X dev``) and its
