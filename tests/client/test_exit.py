@@ -10,6 +10,8 @@ import sys
 import textwrap
 import time
 
+import pytest
+
 from .conftest import SimThread
 
 
@@ -71,35 +73,31 @@ def test_an_async_script_ending_without_close_announces_the_disconnect(sim: SimT
     assert not fast_stopped(sim)
 
 
-def test_an_async_gripper_collected_open_warns_and_announces(sim: SimThread) -> None:
-    url = sim.url("tcp")
-    r = run_script(f"""
-        import asyncio, gc
+COLLECTED = {
+    "Gripper": ('''
+        from pywsg import Gripper
+        print(Gripper(URL).width())  # the temporary is collected at once
+        ''', "call close()"),
+    "AsyncGripper": ('''
+        import asyncio
         from pywsg import AsyncGripper
         async def main():
-            return await (await AsyncGripper.open({url!r})).width()
+            return await (await AsyncGripper.open(URL)).width()
         loop = asyncio.new_event_loop()
         print(loop.run_until_complete(main()))
         loop.close()
-        del loop
-        gc.collect()
-        """, "-W", "default::ResourceWarning")
-    assert r.returncode == 0, r.stderr
-    assert "ResourceWarning: unclosed <AsyncGripper tcp://" in r.stderr and "await close()" in r.stderr
-    assert not fast_stopped(sim)
+        del loop  # the loop held the gripper (its protocol's callbacks): now it can be collected
+        ''', "await close()"),
+}
 
 
-def test_a_gripper_collected_open_warns_and_announces(sim: SimThread) -> None:
-    url = sim.url("tcp")
-    r = run_script(f"""
-        import gc
-        from pywsg import Gripper
-        print(Gripper({url!r}).width())  # the temporary is collected at once
-        gc.collect()
-        import time; time.sleep(0.2)
-        """, "-W", "default::ResourceWarning")
+@pytest.mark.parametrize("cls", list(COLLECTED))
+def test_a_gripper_collected_open_warns_and_announces(sim: SimThread, cls: str) -> None:
+    body, advice = COLLECTED[cls]
+    r = run_script(textwrap.dedent(body).replace("URL", repr(sim.url("tcp"))) + "import gc; gc.collect()\n",
+                   "-W", "default::ResourceWarning")
     assert r.returncode == 0, r.stderr
-    assert "ResourceWarning: unclosed <Gripper tcp://" in r.stderr and "call close()" in r.stderr
+    assert f"ResourceWarning: unclosed <{cls} tcp://" in r.stderr and advice in r.stderr
     assert not fast_stopped(sim)
 
 

@@ -9,7 +9,6 @@ callbacks run on their own thread, so a callback may call the gripper (e.g. ``st
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 import warnings
@@ -47,7 +46,7 @@ from .core import (
 )
 from .demux import Demux, Waiter
 from .sync_commands import Commands, Finger
-from .sync_handles import Motion, Stream
+from .sync_handles import Callbacks, Motion, Stream
 from .sync_transport import SyncTransport, open_sync
 from .types import Reply, Sample, State
 from .url import Endpoint, parse_url
@@ -92,8 +91,7 @@ class Gripper(Commands):
         self._streams: dict[Command, list[Stream]] = {}
         self._pump: threading.Thread | None = None
         self._pump_stop = threading.Event()
-        self._cbq: queue.SimpleQueue[tuple[Stream, Sample] | None] = queue.SimpleQueue()
-        self._cb_thread: threading.Thread | None = None
+        self._callbacks = Callbacks()
         self._closing = False
         self.on_reconnect: Callable[[SystemFlag], None] | None = None
         self.on_connection_lost: Callable[[BaseException | None], None] | None = None
@@ -150,11 +148,7 @@ class Gripper(Commands):
                 log.debug("disconnect announcement: %s", exc)
         self._stop_pump()
         self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
-        if self._cb_thread is not None:
-            self._cbq.put(None)
-            if self._cb_thread is not threading.current_thread():
-                self._cb_thread.join(2.0)
-            self._cb_thread = None
+        self._callbacks.stop()
 
     def _close_at_exit(self) -> None:
         if self._transport is not None:
@@ -673,22 +667,7 @@ class Gripper(Commands):
             self._stop_pump()
 
     def _callback(self, stream: Stream, sample: Sample) -> None:
-        if self._cb_thread is None:
-            self._cb_thread = threading.Thread(target=self._run_callbacks, name="pywsg-callbacks", daemon=True)
-            self._cb_thread.start()
-        self._cbq.put((stream, sample))
-
-    def _run_callbacks(self) -> None:
-        while True:
-            item = self._cbq.get()
-            if item is None:
-                return
-            stream, sample = item
-            for cb in stream.callbacks:
-                try:
-                    cb(sample)
-                except Exception:
-                    log.exception("stream callback failed")
+        self._callbacks.put(stream, sample)
 
     def _start_pump(self) -> None:
         if self._pump is not None:
