@@ -138,8 +138,8 @@ def stop(proc: subprocess.Popen[str]) -> None:
 def sim_cmd(loop: str, base: int, count: int, udp: bool) -> list[str]:
     return [
         PY, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(base),
-        "--udp-port", str(base + count) if udp else "0", "--udp-reply-port", "0", "--serial", "off",
-        "--web-port", "0", "--count", str(count), "--uvloop" if loop == "uvloop" else "--no-uvloop",
+        "--udp-port", str(base + count) if udp else "off", "--udp-reply-port", "0", "--serial", "off",
+        "--web-port", "off", "--count", str(count), "--uvloop" if loop == "uvloop" else "--no-uvloop",
     ]
 
 
