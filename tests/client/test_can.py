@@ -154,12 +154,10 @@ def test_a_lost_request_fragment_fails_that_call_only(can_sim: tuple[SimThread, 
         with pytest.raises(WsgError):  # the device waits for bytes that never come: no reply in time
             g.loop(bytes(40))
         assert drop.dropped == 1
-        for _ in range(3):  # the parser resynchronises on the next preamble; late replies are absorbed
-            try:
-                g.info()
-                break
-            except WsgError:
-                pass
+        # the next request's bytes complete the truncated frame, which fails its CRC (the device answers
+        # E_CHECKSUM_ERROR, absorbed by the timed-out call's ghost); the parser resynchronises on the
+        # next preamble inside it, so this call is answered
+        assert g.info().serial_number >= 0
         assert g.loop(b"after") == b"after"
         assert g.info().serial_number == g.info().serial_number
 

@@ -128,3 +128,25 @@ def test_a_killed_script_still_leaves_fast_stop(sim: SimThread) -> None:
         """)
     assert r.returncode == 0, r.stderr
     assert fast_stopped(sim, wait=5)
+
+
+def test_a_forked_child_does_not_announce_the_parents_gripper(sim: SimThread) -> None:
+    """A child inherits the open gripper (and its socket) through fork; its exit must not end the
+    parent's session with a 07h of its own."""
+    url = sim.url("tcp")
+    r = run_script(f"""
+        import os, sys
+        from pywsg import Gripper
+        g = Gripper({url!r})
+        g.width()
+        pid = os.fork()
+        if pid == 0:
+            sys.exit(0)                          # a clean exit: atexit and collection run in the child
+        os.waitpid(pid, 0)
+        g.home()                                 # the parent's session goes on
+        print("parent ok", g.width())
+        g.close()
+        """, "-W", "default::ResourceWarning")
+    assert r.returncode == 0 and "parent ok" in r.stdout, r.stderr
+    assert "unclosed <Gripper" not in r.stderr, r.stderr  # the child leaves the gripper alone
+    assert not fast_stopped(sim)

@@ -81,6 +81,7 @@ class AsyncGripper(AsyncCommands):
         self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
         self._streams: dict[Command, list[AsyncStream]] = {}
         self._closing = False
+        self._opened_by = 0  # pid that connected it (lifetime)
         self._reconnect_task: asyncio.Task[None] | None = None
         # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
         # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
@@ -177,7 +178,7 @@ class AsyncGripper(AsyncCommands):
             pass
 
     def __del__(self) -> None:
-        if getattr(self, "_transport", None) is None:
+        if getattr(self, "_transport", None) is None or not lifetime.owned(self):
             return
         warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
                       "await close() or use 'async with AsyncGripper(...) as g'", ResourceWarning, stacklevel=1,

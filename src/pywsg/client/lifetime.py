@@ -8,7 +8,9 @@ closed here the normal way (07h, then close). A gripper garbage-collected while 
 disconnect is announced without waiting for the reply. A process killed (SIGKILL, power loss) or a
 cable pulled announces nothing: the gripper goes to FAST STOP, as it must.
 
-The registry holds weak references only: it never keeps a gripper alive.
+The registry holds weak references only: it never keeps a gripper alive. A forked child process
+inherits the parent's open grippers (and their sockets) but never announces them: that would end the
+parent's session.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ log = logging.getLogger("pywsg.client")
 
 
 class _Closable(Protocol):
+    _opened_by: int  # pid of the process that connected it
+
     def _close_at_exit(self) -> None: ...
 
 
@@ -33,6 +37,7 @@ _OPEN: weakref.WeakSet[Any] = weakref.WeakSet()
 
 
 def opened(gripper: _Closable) -> None:
+    gripper._opened_by = os.getpid()
     _OPEN.add(gripper)
 
 
@@ -40,10 +45,16 @@ def closed(gripper: _Closable) -> None:
     _OPEN.discard(gripper)
 
 
+def owned(gripper: _Closable) -> bool:
+    """Connected by this process (not inherited through fork). Kept on the gripper itself: during a
+    collection its weak references are already cleared when ``__del__`` asks."""
+    return getattr(gripper, "_opened_by", None) == os.getpid()
+
+
 @atexit.register
 def _close_all() -> None:
     """Announce the disconnect of every gripper still open (runs after the main script ends)."""
-    for g in list(_OPEN):
+    for g in [g for g in list(_OPEN) if owned(g)]:
         try:
             log.info("closing %r at interpreter exit (disconnect announced)", g)
             g._close_at_exit()

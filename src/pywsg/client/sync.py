@@ -93,6 +93,7 @@ class Gripper(Commands):
         self._pump_stop = threading.Event()
         self._callbacks = Callbacks()
         self._closing = False
+        self._opened_by = 0  # pid that connected it (lifetime)
         self.on_reconnect: Callable[[SystemFlag], None] | None = None
         self.on_connection_lost: Callable[[BaseException | None], None] | None = None
         self.last_error: BaseException | None = None
@@ -156,7 +157,7 @@ class Gripper(Commands):
 
     def __del__(self) -> None:
         t = getattr(self, "_transport", None)
-        if t is None:  # closed, never connected, or __init__ failed
+        if t is None or not lifetime.owned(self):  # closed, never connected, __init__ failed, or forked
             return
         warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
                       "call close() or use 'with Gripper(...) as g'", ResourceWarning, stacklevel=1, source=self)
