@@ -146,3 +146,75 @@ def test_arbitrary_garbage_is_bounded_and_recovers(garbage_parts, frame, chunk) 
     seen += p.feed(b"\x00" * (MAX_PAYLOAD + 8))
     if request_max_payload(cid) >= len(payload):
         assert Frame(cid, payload) in frames_of(seen)
+
+
+# -- hostile input (issue 13): same frames as the naive parser, errors once per span ------------
+
+
+def naive_frames(stream: bytes, max_payload: int = MAX_PAYLOAD) -> list[Frame]:
+    """Reference: try every candidate header with a full CRC (what the parser did before)."""
+    from pywsg.protocol.crc import crc16
+
+    out, pos = [], 0
+    while True:
+        start = stream.find(b"\xaa\xaa\xaa", pos)
+        if start < 0:
+            return out
+        while start + 3 < len(stream) and stream[start + 3] == 0xAA:
+            start += 1
+        if len(stream) - start < 6:
+            return out
+        size = stream[start + 4] | stream[start + 5] << 8
+        end = start + size + 8
+        if size <= max_payload and end > len(stream):
+            return out  # a header waits for its SIZE bytes (a frame inside it comes out later)
+        if size > max_payload or crc16(stream[start:end]) != 0:
+            pos = start + 1
+            continue
+        out.append(Frame(stream[start + 3], stream[start + 6 : end - 2]))
+        pos = end
+
+
+forged = st.builds(lambda i, n: b"\xaa\xaa\xaa" + bytes([i]) + n.to_bytes(2, "little"),
+                   st.integers(0, 255), st.integers(0, 80))
+pieces = st.one_of(st.binary(max_size=30), forged, valid_frames.map(lambda f: encode_frame(*f)))
+
+
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(pieces, max_size=25), st.integers(1, 97))
+def test_overlapping_candidates_find_exactly_the_naive_frames(parts, chunk) -> None:  # type: ignore[no-untyped-def]
+    """Verifying overlapping candidates from running CRC states finds the frames a full CRC finds."""
+    stream = b"".join(parts)
+    p = FrameParser()
+    got = frames_of(p.feed_all([stream[i : i + chunk] for i in range(0, len(stream), chunk)]))
+    assert got == naive_frames(stream)
+
+
+def test_forged_1kib_headers_get_one_checksum_error_per_span() -> None:
+    stream = bytes.fromhex("AAAAAA990004") * 2000  # 12,000 bytes: ~2,000 candidates of 1 KiB
+    events = FrameParser().feed(stream + HOMING_OK)
+    errors = [e for e in events if isinstance(e, ChecksumMismatch)]
+    assert 1 <= len(errors) <= len(stream) // 1032 + 1
+    assert frames_of(events) == []  # HOMING_OK still lies inside the last forged span
+    assert Frame(0x20, b"\x00\x00") in frames_of(FrameParser().feed(stream + b"\x00" * 1032 + HOMING_OK))
+
+
+def test_oversized_headers_get_one_error_per_maximal_frame() -> None:
+    stream = bytes.fromhex("AAAAAA99FFFF") * 1000
+    events = FrameParser().feed(stream)
+    assert 1 <= sum(isinstance(e, FrameTooLarge) for e in events) <= len(stream) // (MAX_PAYLOAD + 8) + 1
+
+
+def test_bad_frames_that_do_not_overlap_each_get_their_error() -> None:
+    bad = bytearray(encode_frame(0x21, b"\x01" * 9))
+    bad[-1] ^= 0xFF
+    events = FrameParser().feed(bytes(bad) * 50)
+    assert sum(isinstance(e, ChecksumMismatch) for e in events) == 50
+
+
+def test_datagram_is_one_frame_whatever_follows() -> None:
+    """One frame per datagram: 40 frames in one datagram give one frame and trailing bytes."""
+    events = parse_datagram(HOMING_OK * 40)
+    assert events == [Frame(0x20, b"\x00\x00"), TrailingBytes(len(HOMING_OK) * 39)]
+    forged_only = parse_datagram(bytes.fromhex("AAAAAA990004") * 10000)
+    assert [type(e) for e in forged_only] == [ChecksumMismatch, TrailingBytes]
