@@ -7,8 +7,7 @@ path the port is opened through pyserial at ``baudrate`` (8N1, no flow control).
 
 The serial line has one device session. Output the client does not read is kept up to the soft limit;
 above it auto-update packets are dropped, and above the hard limit the oldest output is discarded
-(a serial line cannot be "closed" on a client that stopped reading) — whole frames only: the chunk
-being written when the reader stalled is always finished, so the reader never sees a torn frame.
+(a serial line cannot be "closed" on a client that stopped reading).
 """
 
 from __future__ import annotations
@@ -54,8 +53,7 @@ class SerialServer:
         self._fd = -1
         self._keep_fd = -1  # pty: our handle on the client side
         self._serial: Any = None  # pyserial object for a real device
-        self._out: deque[bytes] = deque()  # whole frames (one or more each); the first may be half written
-        self._head_sent = 0  # bytes of _out[0] already written
+        self._out: deque[bytes] = deque()
         self._out_size = 0
         self._writing = False
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -122,15 +120,11 @@ class SerialServer:
                 return
             if n == len(data):
                 return
-            self._head_sent = n
-            self._out_size = len(data) - n
-        else:
-            self._out_size += len(data)
+            data = data[n:]
         self._out.append(data)
-        # discard the oldest whole frames behind the one being written (its rest must follow it)
+        self._out_size += len(data)
         while self._out_size > self.limits.output_hard and len(self._out) > 1:
-            old = self._out[1]
-            del self._out[1]
+            old = self._out.popleft()
             self._out_size -= len(old)
             self.dropped += 1
         if not self._writing and self._loop is not None:
@@ -140,21 +134,19 @@ class SerialServer:
     def _on_writable(self) -> None:
         while self._out:
             chunk = self._out[0]
-            sent = self._head_sent
             try:
-                n = os.write(self._fd, chunk[sent:] if sent else chunk)
+                n = os.write(self._fd, chunk)
             except BlockingIOError:
                 return
             except OSError:
                 self._out.clear()
-                self._out_size = self._head_sent = 0
+                self._out_size = 0
                 break
             self._out_size -= n
-            if sent + n < len(chunk):
-                self._head_sent = sent + n
+            if n < len(chunk):
+                self._out[0] = chunk[n:]
                 return
             self._out.popleft()
-            self._head_sent = 0
         self._writing = False
         if self._loop is not None:
             self._loop.remove_writer(self._fd)
