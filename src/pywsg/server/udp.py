@@ -120,10 +120,11 @@ class UdpServer(asyncio.DatagramProtocol):
         if replies and log.isEnabledFor(logging.INFO):
             log_replies(log, f"udp {addr[0]}:{addr[1]}", replies)
         t = self.transport
-        if t is None or self.client is None:
+        if t is None:
             return
+        client = self.client
         for frame in replies:
-            t.sendto(frame.encode(), self.client)
+            t.sendto(frame.encode(), client)
 
     def _looped(self, addr: tuple[str | Any, int]) -> None:
         if not self.looped:
