@@ -8,8 +8,8 @@ overlapping candidate frames (``AA AA AA`` headers every few bytes, each announc
 each byte's state once and then checks every candidate with two table look-ups, instead of a CRC
 of up to 1 KiB per candidate.
 
-``g^n`` is applied as ``g^(32q)`` after ``g^r`` (``n = 32q + r``), each as two 256-entry tables (low
-byte, high byte): 65 table pairs cover 1 KiB frames, built on first use in a few ms.
+``g^n`` is applied as two 256-entry tables (low byte, high byte), built for every ``n`` up to the
+longest window asked for (1 KiB frames: about 1 MB, built once per process in ~50 ms).
 """
 
 from __future__ import annotations
@@ -20,45 +20,30 @@ from itertools import accumulate
 
 from .crc import _WORD_TABLE, CRC_INIT, CRC_TABLE
 
-_FINE = 32
-_FINE_LO: list[array[int]] = []  # g^r for r < 32: low-byte and high-byte tables
-_FINE_HI: list[array[int]] = []
-_COARSE_LO: list[array[int]] = []  # g^(32q)
-_COARSE_HI: list[array[int]] = []
+_SHIFT_LO: list[array[int]] = []
+_SHIFT_HI: list[array[int]] = []
 
 
 def _step0(c: int) -> int:
     return CRC_TABLE[c & 0xFF] ^ (c >> 8)
 
 
-def _build(q: int) -> None:
-    """Tables for ``g^r`` (r < 32) and ``g^(32k)`` for every ``k <= q`` (a few ms, once)."""
-    if not _FINE_LO:
-        lo, hi = array("H", range(256)), array("H", (i << 8 for i in range(256)))
-        for _ in range(_FINE):
-            _FINE_LO.append(lo)
-            _FINE_HI.append(hi)
-            lo, hi = array("H", map(_step0, lo)), array("H", map(_step0, hi))
-        _COARSE_LO.append(array("H", range(256)))
-        _COARSE_HI.append(array("H", (i << 8 for i in range(256))))
-        _STEP32.extend((lo, hi))  # g^32
-    s_lo, s_hi = _STEP32
-    while len(_COARSE_LO) <= q:
-        lo, hi = _COARSE_LO[-1], _COARSE_HI[-1]
-        _COARSE_LO.append(array("H", [s_lo[v & 0xFF] ^ s_hi[v >> 8] for v in lo]))
-        _COARSE_HI.append(array("H", [s_lo[v & 0xFF] ^ s_hi[v >> 8] for v in hi]))
-
-
-_STEP32: list[array[int]] = []
+def _extend_shift_tables(n: int) -> None:
+    """Tables of ``g^k`` for every ``k <= n`` (``g^0`` is the identity)."""
+    if not _SHIFT_LO:
+        _SHIFT_LO.append(array("H", range(256)))
+        _SHIFT_HI.append(array("H", (i << 8 for i in range(256))))
+    while len(_SHIFT_LO) <= n:
+        lo, hi = _SHIFT_LO[-1], _SHIFT_HI[-1]
+        _SHIFT_LO.append(array("H", [_step0(v) for v in lo]))
+        _SHIFT_HI.append(array("H", [_step0(v) for v in hi]))
 
 
 def shift(state: int, n: int) -> int:
     """``g^n(state)``: the state after ``n`` zero bytes, without the zero bytes' own contribution."""
-    q, r = divmod(n, _FINE)
-    if q >= len(_COARSE_LO):
-        _build(q)
-    x = _FINE_LO[r][state & 0xFF] ^ _FINE_HI[r][state >> 8]
-    return _COARSE_LO[q][x & 0xFF] ^ _COARSE_HI[q][x >> 8]
+    if n >= len(_SHIFT_LO):
+        _extend_shift_tables(n)
+    return _SHIFT_LO[n][state & 0xFF] ^ _SHIFT_HI[n][state >> 8]
 
 
 def _states_after(crc: int, chunk: bytes | bytearray) -> array[int]:
@@ -123,7 +108,11 @@ class RunningCrc:
         if e - base >= len(states):
             # in steps of at least 2 KiB: one call per run of candidates, not per candidate
             self._state(buf, min(max(e, base + len(states) + 2048), len(buf)))
-        return states[e - base] ^ shift(states[p - base] ^ CRC_INIT, e - p)
+        sp = states[p - base] ^ CRC_INIT
+        n = e - p
+        if n >= len(_SHIFT_LO):
+            _extend_shift_tables(n)
+        return states[e - base] ^ _SHIFT_LO[n][sp & 0xFF] ^ _SHIFT_HI[n][sp >> 8]
 
     def drop(self, k: int) -> None:
         """The owner deleted ``buf[:k]``: renumber (states before ``k`` are forgotten)."""

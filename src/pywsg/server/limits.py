@@ -18,9 +18,6 @@ class Limits:
     """Write buffer (bytes) above which the connection is closed (a client sending requests it never reads)."""
     high_water: int = 64 * 1024
     """Write buffer (bytes) at which reading from that client pauses until it drains."""
-    read_batch: int = 16 * 1024
-    """Bytes of one TCP read fed to the device per event-loop iteration; the rest waits (reading
-    paused) while other clients are served. A batch of the costliest input takes a few ms."""
     max_connections: int = 16
     """TCP connections held open per server; more are closed at once."""
     keepalive_idle: int = 5

@@ -268,17 +268,7 @@ class SimServer:
         except BaseException:
             await self.close(save=False)
             raise
-        self._warn_reply_port()
         return self
-
-    def _warn_reply_port(self) -> None:
-        reply = self.options.udp_reply_port
-        listening = {g.udp_port: g.index for g in self.grippers if g.udp_port}
-        if reply is not None and reply in listening:
-            log.warning(
-                "UDP replies go to port %d, where gripper %d listens: replies to a client on this host are "
-                "not sent (no reply loops); use --udp-reply-port 0 (reply to the sender's port) or move "
-                "--udp-port", reply, listening[reply])
 
     async def _start_one(self, sg: SimGripper, i: int) -> None:
         opts = self.options

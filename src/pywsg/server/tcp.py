@@ -61,11 +61,7 @@ class TcpConnection(asyncio.Protocol):
         self.dropped = 0
         """Auto-update packets dropped because the client did not read."""
         self.last_rx = time.monotonic()
-        self._paused = False  # the client does not read: its write buffer is above the high-water mark
-        self._draining = False  # a big read is being fed in batches
-        self._reading = True
-        self._backlog = b""
-        self._offset = 0
+        self._paused = False
 
     # -- asyncio.Protocol ------------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -92,48 +88,6 @@ class TcpConnection(asyncio.Protocol):
     def data_received(self, data: bytes) -> None:
         if self.refused:  # only refused clients are reaped when silent
             self.last_rx = time.monotonic()
-        batch = self.server.limits.read_batch
-        if len(data) <= batch and not self._backlog:
-            self._handle(data)
-            return
-        # A big read (up to 256 KiB) is fed in batches, one per loop iteration, with reading paused:
-        # one client's burst never holds the other clients (and every other interface) for long.
-        self._backlog = self._backlog[self._offset:] + data if self._backlog else data
-        self._offset = 0
-        if not self._draining:
-            self._draining = True
-            self._update_reading()
-            self._drain()
-
-    def _drain(self) -> None:
-        t = self.transport
-        if t is None or t.is_closing():
-            self._backlog, self._offset, self._draining = b"", 0, False
-            return
-        batch = self.server.limits.read_batch
-        start = self._offset
-        self._offset = start + batch
-        self._handle(self._backlog[start:start + batch])
-        if self._offset < len(self._backlog):
-            asyncio.get_running_loop().call_soon(self._drain)
-            return
-        self._backlog, self._offset, self._draining = b"", 0, False
-        self._update_reading()
-
-    def _update_reading(self) -> None:
-        """Read while neither a write backlog nor a read backlog is pending."""
-        t = self.transport
-        if t is None or t.is_closing():
-            return
-        want = not (self._paused or self._draining)
-        if want != self._reading:
-            self._reading = want
-            if want:
-                t.resume_reading()
-            else:
-                t.pause_reading()
-
-    def _handle(self, data: bytes) -> None:
         replies = self.server.gripper.feed(self.session, data)
         if replies:
             if log.isEnabledFor(logging.INFO):
@@ -159,12 +113,14 @@ class TcpConnection(asyncio.Protocol):
 
     def pause_writing(self) -> None:
         # a client that does not read its replies: stop reading its requests until it does
-        self._paused = True
-        self._update_reading()
+        if self.transport is not None and not self._paused:
+            self._paused = True
+            self.transport.pause_reading()
 
     def resume_writing(self) -> None:
-        self._paused = False
-        self._update_reading()
+        if self.transport is not None and self._paused:
+            self._paused = False
+            self.transport.resume_reading()
 
     # -- output ------------------------------------------------------------------------------
     @property

@@ -1,21 +1,15 @@
 """UDP command interface (default: listen on 1500, answer to the client's address on port 1501).
 
-One frame per datagram: only a datagram's first frame is read and answered (bytes after it are
-ignored), so a datagram gets at most one reply. The device answers to the sender's IP on the configured remote port
+One frame per datagram. The device answers to the sender's IP on the configured remote port
 (``reply_port``, factory setting 1501 that public UDP drivers assume), or to the sender's own port
 when ``reply_port`` is None. There is one device session for the UDP interface: auto-update packets
 go to the last client that sent a datagram. Empty and oversized datagrams are handled by the device's
 datagram parser (a header that announces more than the datagram holds is a truncated frame).
-
-No reply loops: a gripper ignores datagrams sent from any UDP command port of this process (its own
-or a sibling's, e.g. ``--count 2`` where gripper 1 listens on gripper 0's reply port 1501) and never
-sends a reply to one of them; such datagrams are counted in :attr:`UdpServer.looped`.
 """
 
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import logging
 from typing import Any, cast
 
@@ -28,25 +22,6 @@ from .trace import log_replies
 log = logging.getLogger("pywsg.server.udp")
 
 Address = tuple[str, int]
-
-
-_LOCAL_PORTS: dict[int, set[str]] = {}
-"""UDP command ports bound in this process -> the hosts they are bound on."""
-
-
-def _local_ip(ip: str, bound: set[str]) -> bool:
-    if ip in bound or "0.0.0.0" in bound or "::" in bound:
-        return True
-    try:
-        return ipaddress.ip_address(ip.split("%")[0]).is_loopback
-    except ValueError:
-        return False
-
-
-def is_own_port(addr: tuple[str | Any, int]) -> bool:
-    """True if ``addr`` is a UDP command port of this process (a datagram to or from it would loop)."""
-    bound = _LOCAL_PORTS.get(int(addr[1]))
-    return bound is not None and _local_ip(str(addr[0]), bound)
 
 
 def _buffered(t: asyncio.DatagramTransport) -> int:
@@ -80,8 +55,6 @@ class UdpServer(asyncio.DatagramProtocol):
         self.port = 0
         self.dropped = 0
         self.datagrams = 0
-        self.looped = 0
-        """Datagrams ignored (or replies not sent) because they came from or went to one of our own ports."""
 
     async def start(self) -> UdpServer:
         loop = asyncio.get_running_loop()
@@ -89,7 +62,6 @@ class UdpServer(asyncio.DatagramProtocol):
             lambda: self, local_addr=(self.host, self.requested_port)
         )
         self.port = transport.get_extra_info("sockname")[1]
-        _LOCAL_PORTS.setdefault(self.port, set()).add(self.host)
         return self
 
     @property
@@ -106,16 +78,9 @@ class UdpServer(asyncio.DatagramProtocol):
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         self.datagrams += 1
         if addr != self._last_addr:  # a polling client sends from one address: convert it once
-            if is_own_port(addr):  # our own reply (self-loop) or a sibling gripper's
-                self._looped(addr)
-                return
-            port = int(addr[1])
-            client = (str(addr[0]), port if self.reply_port is None else self.reply_port)
-            if is_own_port(client):  # the reply would land on a command port of ours
-                self._looped(client)
-                return
             self._last_addr = addr
-            self.client = client
+            port = int(addr[1])
+            self.client = (str(addr[0]), port if self.reply_port is None else self.reply_port)
         replies = self.gripper.handle_datagram(self.session, data)
         if replies and log.isEnabledFor(logging.INFO):
             log_replies(log, f"udp {addr[0]}:{addr[1]}", replies)
@@ -126,23 +91,12 @@ class UdpServer(asyncio.DatagramProtocol):
         for frame in replies:
             t.sendto(frame.encode(), client)
 
-    def _looped(self, addr: tuple[str | Any, int]) -> None:
-        if not self.looped:
-            log.warning("udp %s: %s:%s is a UDP command port of this simulator: not answered (reply loop)",
-                        self.port, addr[0], addr[1])
-        self.looped += 1
-
     def error_received(self, exc: Exception) -> None:
         # ICMP port unreachable from a client that went away: nothing to do
         log.debug("udp: %s", exc)
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.transport = None
-        hosts = _LOCAL_PORTS.get(self.port)
-        if hosts is not None:
-            hosts.discard(self.host)
-            if not hosts:
-                del _LOCAL_PORTS[self.port]
 
     def deliver(self, frame: Frame) -> None:
         t = self.transport
