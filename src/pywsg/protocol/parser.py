@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from .crc import crc16
-from .crc_window import RunningCrc
 from .frame import HEADER_SIZE, MAX_PAYLOAD, OVERHEAD, PREAMBLE, Frame
 
 MaxPayload = Callable[[int], int]
@@ -126,30 +125,14 @@ class FrameParser:
     field must be present but its value is ignored. ``max_payload(command_id)`` bounds SIZE
     per ID (default: 1 KiB for every ID). Command ID AAh cannot be received: a fourth AAh
     is taken as garbage before the preamble.
-
-    Hostile input costs about what random bytes cost (docs/protocol.md, "Garbage and forged headers"):
-
-    - A candidate header that fails is left one byte later (frames behind a forged header are never
-      lost), so candidates overlap; a candidate inside the span of one already checked is verified from
-      running CRC states (:class:`~.crc_window.RunningCrc`, two table look-ups) instead of a CRC of up
-      to 1 KiB. Every byte is fed through the CRC at most twice.
-    - One error per span: a checksum or size error is reported for a candidate only if it does not
-      start inside the span (at most one maximal frame) of the last candidate that already got an
-      error. Frames never overlap, so the later one cannot be a frame the sender sent: the manual asks
-      for an answer per frame, not per garbage candidate. Its bytes count as skipped garbage. Valid
-      frames are always delivered.
-    - Runs of skipped garbage are reported as one :class:`GarbageSkipped` per feed.
     """
 
-    __slots__ = ("_buf", "_quiet", "_running", "max_payload", "verify_checksum")
+    __slots__ = ("_buf", "max_payload", "verify_checksum")
 
     def __init__(self, verify_checksum: bool = True, max_payload: MaxPayload | None = None) -> None:
         self._buf = bytearray()
         self.verify_checksum = verify_checksum
         self.max_payload: MaxPayload = max_payload or _default_max
-        self._quiet = 0
-        """Buffer index before which candidates get no error event (the span of the last error)."""
-        self._running = RunningCrc()
 
     @property
     def buffered(self) -> int:
@@ -162,8 +145,6 @@ class FrameParser:
 
     def clear(self) -> None:
         self._buf.clear()
-        self._quiet = 0
-        self._running.clear()
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         buf = self._buf
@@ -171,17 +152,11 @@ class FrameParser:
             # the common case on a socket: nothing buffered and ``data`` is exactly one frame
             whole = whole_frame(data, self.verify_checksum, self.max_payload)
             if whole is not None:
-                self._quiet = 0
                 return [whole]
         buf += data
         events: list[Event] = []
-        skipped = 0  # garbage not yet reported (one event per run)
         pos = 0
         n = len(buf)
-        quiet = self._quiet
-        running = self._running
-        verify = self.verify_checksum
-        max_payload = self.max_payload
         while True:
             start = buf.find(PREAMBLE, pos)
             if start < 0:
@@ -189,66 +164,42 @@ class FrameParser:
                 keep = 0
                 while keep < 2 and n - keep > pos and buf[n - keep - 1] == 0xAA:
                     keep += 1
-                skipped += n - keep - pos
+                skipped = n - keep - pos
+                if skipped:
+                    events.append(GarbageSkipped(skipped))
                 pos = n - keep
                 break
             # In a run of AAh the preamble is its last three bytes: no command has ID AAh,
             # so a stray AAh before a frame costs one skipped byte, not a bogus header.
             while start + 3 < n and buf[start + 3] == 0xAA:
                 start += 1
-            skipped += start - pos
-            pos = start
+            if start > pos:
+                events.append(GarbageSkipped(start - pos))
+                pos = start
             if n - pos < HEADER_SIZE:
                 break
             command_id, size = _SIZE.unpack_from(buf, pos + 3)
-            limit = max_payload(command_id)
+            limit = self.max_payload(command_id)
             if size > limit:
-                if pos < quiet:
-                    skipped += 1
-                else:
-                    if skipped:
-                        events.append(GarbageSkipped(skipped))
-                        skipped = 0
-                    events.append(FrameTooLarge(command_id, size, limit))
-                    quiet = pos + min(size, MAX_PAYLOAD) + OVERHEAD
+                events.append(FrameTooLarge(command_id, size, limit))
                 pos += 1  # resynchronise on the next preamble
                 continue
             end = pos + size + OVERHEAD
             if end > n:
                 break
-            if verify:
+            if self.verify_checksum and crc16(memoryview(buf)[pos:end]) != 0:
+                expected = crc16(memoryview(buf)[pos : end - 2])
                 received = buf[end - 2] | (buf[end - 1] << 8)
-                # inside a span already checked, verify from running states (no CRC over the span again)
-                expected = running.window(buf, pos, end - 2) if pos < quiet else crc16(memoryview(buf)[pos : end - 2])
                 if expected != received:
-                    if pos < quiet:
-                        skipped += 1
-                    else:
-                        if skipped:
-                            events.append(GarbageSkipped(skipped))
-                            skipped = 0
-                        events.append(
-                            ChecksumMismatch(command_id, bytes(buf[pos + HEADER_SIZE : end - 2]), received, expected)
-                        )
-                        quiet = end
+                    events.append(
+                        ChecksumMismatch(command_id, bytes(buf[pos + HEADER_SIZE : end - 2]), received, expected)
+                    )
                     pos += 1  # a forged header must not swallow the frames behind it
                     continue
-            if skipped:
-                events.append(GarbageSkipped(skipped))
-                skipped = 0
             events.append(Frame(command_id, bytes(buf[pos + HEADER_SIZE : end - 2])))
             pos = end
-            quiet = 0  # in step with the sender again: the next bad frame is answered
-        if skipped:
-            events.append(GarbageSkipped(skipped))
         if pos:
             del buf[:pos]
-            quiet = max(quiet - pos, 0)
-            if quiet:
-                running.drop(pos)
-        if not quiet and len(running):
-            running.clear()
-        self._quiet = quiet
         return events
 
     def feed_all(self, chunks: Iterable[bytes]) -> list[Event]:
@@ -261,46 +212,20 @@ class FrameParser:
 def parse_datagram(
     data: bytes, verify_checksum: bool = True, max_payload: MaxPayload | None = None
 ) -> list[Event]:
-    """Parse one datagram: it holds one frame (UDP, docs/sim.md), so only its first candidate is read.
-
-    Garbage before the preamble is reported; bytes after the frame are reported as
-    :class:`TrailingBytes` and never parsed, so a datagram is answered at most once whatever it holds
-    (no amplification) and costs at most one CRC over one frame. Nothing is kept.
-    """
-    limits = max_payload or _default_max
-    whole = whole_frame(data, verify_checksum, limits)
+    """Parse one datagram (UDP: one frame per datagram). Leftovers are reported, never kept."""
+    whole = whole_frame(data, verify_checksum, max_payload or _default_max)
     if whole is not None:
         return [whole]
-    events: list[Event] = []
-    n = len(data)
-    start = data.find(PREAMBLE)
-    if start < 0:
-        if n:
-            events.append(GarbageSkipped(n))
-        return events
-    while start + 3 < n and data[start + 3] == 0xAA:  # in a run of AAh the preamble is its last three
-        start += 1
-    if start:
-        events.append(GarbageSkipped(start))
-    have = n - start
-    if have < HEADER_SIZE:
-        events.append(Truncated(data[start + 3] if have > 3 else None, have, OVERHEAD))
-        return events
-    command_id, size = _SIZE.unpack_from(data, start + 3)
-    limit = limits(command_id)
-    if size > limit:
-        events.append(FrameTooLarge(command_id, size, limit))
-        return events
-    end = start + size + OVERHEAD
-    if end > n:
-        events.append(Truncated(command_id, have, size + OVERHEAD))
-        return events
-    received = data[end - 2] | (data[end - 1] << 8)
-    expected = crc16(memoryview(data)[start : end - 2]) if verify_checksum else received
-    if expected != received:
-        events.append(ChecksumMismatch(command_id, bytes(data[start + HEADER_SIZE : end - 2]), received, expected))
-    else:
-        events.append(Frame(command_id, bytes(data[start + HEADER_SIZE : end - 2])))
-    if end < n:
-        events.append(TrailingBytes(n - end))
+    parser = FrameParser(verify_checksum, max_payload)
+    events = parser.feed(data)
+    rest = parser.pending()
+    frames = [e for e in events if isinstance(e, Frame)]
+    if rest and not frames:
+        cid = rest[3] if len(rest) > 3 else None
+        need = OVERHEAD
+        if len(rest) >= HEADER_SIZE:
+            need = OVERHEAD + (rest[4] | (rest[5] << 8))
+        events.append(Truncated(cid, len(rest), need))
+    elif rest:
+        events.append(TrailingBytes(len(rest)))
     return events
