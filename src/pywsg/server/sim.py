@@ -243,11 +243,20 @@ class SimServer:
 
     def _load_settings(self) -> Any:
         path = self.options.settings
-        if path is None or not Path(path).exists():
+        if path is None:
+            return None
+        if not Path(path).exists():
+            from ..device import Settings
+
+            Settings.clean_temporaries(path)  # a save killed before its first rename
             return None
         from ..device import Settings
+        from ..device.settings import SettingsError
 
-        return Settings.load(path)
+        try:
+            return Settings.load(path)
+        except SettingsError as exc:
+            raise SimError(str(exc)) from None
 
     async def start(self) -> SimServer:
         opts = self.options
@@ -297,7 +306,8 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port
+                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                max_connections=opts.limits.modbus_connections,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
@@ -306,6 +316,7 @@ class SimServer:
                 "sim_info": sg.info(),
                 "fieldbus": getattr(sg.modbus, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
+                "max_connections": opts.limits.web_connections,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
@@ -342,7 +353,13 @@ class SimServer:
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)
             if settings is not None and hasattr(settings, "save"):
-                settings.save(path)
+                try:
+                    settings.save(path)
+                except OSError as exc:
+                    raise SimError(
+                        f"{path}: cannot save settings: {exc.strerror or exc}; this run's changes are lost "
+                        "(--settings must name a file in a writable directory)"
+                    ) from None
         await asyncio.sleep(0)
 
 
