@@ -146,3 +146,35 @@ async def test_garbage_then_a_request_on_a_fresh_connection(port: int) -> None:
     await asyncio.to_thread(garbage)
     reply = await _one(port, bytes([0x04, 0, 0, 0, 6]))
     assert reply[:2] == bytes([0x04, 12]) and len(reply) == 14
+
+
+async def test_a_maximal_adu_and_the_next_request_in_one_write_are_both_answered(port: int) -> None:
+    """Implementation Guide: an ADU is up to 260 bytes and a stream carries any number of them. A
+    maximal ADU (length 254, here FC16 with a wrong byte count: exception 03) plus a request in one
+    write (266 bytes) are both answered; pymodbus alone drops a receive buffer over 260 bytes (fuzz F1)."""
+    big = adu(bytes([0x10, 0, 0, 0, 1, 248]) + bytes(247), tid=0x51)
+    assert len(big) == 260
+    data = big + adu(bytes([0x04, 0, 0, 0, 6]), tid=0x52)
+    replies = await asyncio.to_thread(exchange, port, data, 2)
+    assert [tid for tid, _ in replies] == [0x51, 0x52]
+    assert replies[0][1] == bytes([0x90, 0x03]) and len(registers(replies[1][1])) == 6
+
+
+async def test_many_pipelined_requests_in_one_write_are_all_answered(port: int) -> None:
+    """40 requests (480 bytes) in one write: all 40 answered, in order (fuzz F1)."""
+    data = b"".join(adu(bytes([0x03, 0, 0, 0, 4]), tid=0x100 + i) for i in range(40))
+    replies = await asyncio.to_thread(exchange, port, data, 40)
+    assert [tid for tid, _ in replies] == [0x100 + i for i in range(40)]
+
+
+async def test_requests_before_an_unframeable_adu_are_answered_then_the_connection_closes(port: int) -> None:
+    """A complete request, then in the same write an MBAP length over 254: the request is answered,
+    then the connection is closed (fuzz F2)."""
+    def run() -> tuple[list[tuple[int, bytes]], bytes]:
+        with socket.create_connection(("127.0.0.1", port), timeout=3) as s:
+            s.sendall(adu(bytes([0x04, 0, 0, 0, 6]), tid=0x61) + bytes([0, 0x62, 0, 0, 0x01, 0x00, 1, 3]))
+            replies = read_adus(s, 1)
+            return replies, s.recv(64)
+    replies, rest = await asyncio.to_thread(run)
+    assert [tid for tid, _ in replies] == [0x61] and len(registers(replies[0][1])) == 6
+    assert rest == b""   # closed

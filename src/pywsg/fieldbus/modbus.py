@@ -61,6 +61,11 @@ _SERVED_FCS = frozenset({0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F, 0x10, 0x17})
 MAX_MBAP_LENGTH = 254
 #: Requests queued on one connection before the server stops reading from it (back-pressure).
 MAX_QUEUED = 64
+#: pymodbus' receive buffer limit for our connections. pymodbus drops the whole buffer, silently,
+#: when a read makes it longer than its default (the framer's 260 bytes), losing pipelined requests
+#: (fuzz F1). We cut every complete ADU at once, so the buffer holds at most one partial ADU
+#: (< 260 bytes) plus one read (asyncio reads at most 256 KiB): this limit is never reached.
+RECV_BUFFER_LIMIT = 1 << 20
 
 
 #: Size of the table each function code addresses (coils, discrete inputs, holding / input registers).
@@ -195,22 +200,27 @@ class _Connection(ServerRequestHandler):
     Here every complete ADU in the stream is cut by its length field and answered in order;
     protocol id ≠ 0 and length < 2 ADUs are dropped unanswered (nothing to answer: not Modbus, no
     function code); a length > 254 closes the connection (the stream cannot be framed); PDUs are
-    checked by :func:`check_pdu` before pymodbus decodes and executes them.
+    checked by :func:`check_pdu` before pymodbus decodes and executes them. Requests before an
+    unframeable ADU are answered before the connection closes.
     """
 
     def __init__(self, owner: ModbusTcpServer) -> None:
         super().__init__(owner, None, None, None)  # type: ignore[no-untyped-call]
+        self.max_buffer_size = RECV_BUFFER_LIMIT
         self._queue: deque[ModbusPDU] = deque()
         self._worker: asyncio.Task[None] | None = None
         self._paused = False
+        self._closing = False   # an unframeable ADU came: answer what is queued, then close
 
     def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
+        if self._closing:
+            return len(data)
         pos = 0
         while len(data) - pos >= 6:
             tid, protocol, length = struct.unpack_from(">HHH", data, pos)
             if length > MAX_MBAP_LENGTH:
                 log.warning("Modbus/TCP: MBAP length %d > %d, closing the connection", length, MAX_MBAP_LENGTH)
-                self.close()
+                self._close_when_answered()
                 return len(data)
             if len(data) - pos < 6 + length:
                 break   # the rest of this ADU is still on its way
@@ -239,18 +249,29 @@ class _Connection(ServerRequestHandler):
         if self._worker is None or self._worker.done():
             self._worker = asyncio.get_running_loop().create_task(self._drain())
 
+    def _close_when_answered(self) -> None:
+        """Stop reading; close once the requests already queued are answered (fuzz F2)."""
+        self._closing = True
+        self._reading(False)
+        if not self._queue and (self._worker is None or self._worker.done()):
+            self.close()
+
     async def _drain(self) -> None:
         """Execute queued requests one by one, so replies leave in request order."""
-        while self._queue:
-            request = self._queue.popleft()
-            if isinstance(request, ExceptionResponse):
-                self.server_send(request, None)  # type: ignore[no-untyped-call]
-            else:
-                self.last_pdu, self.last_addr = request, None
-                await self.handle_request()  # type: ignore[no-untyped-call]
-            if self._paused and len(self._queue) < MAX_QUEUED // 2:
-                self._paused = False
-                self._reading(True)
+        try:
+            while self._queue:
+                request = self._queue.popleft()
+                if isinstance(request, ExceptionResponse):
+                    self.server_send(request, None)  # type: ignore[no-untyped-call]
+                else:
+                    self.last_pdu, self.last_addr = request, None
+                    await self.handle_request()  # type: ignore[no-untyped-call]
+                if self._paused and not self._closing and len(self._queue) < MAX_QUEUED // 2:
+                    self._paused = False
+                    self._reading(True)
+        finally:
+            if self._closing:
+                self.close()
 
     def _reading(self, on: bool) -> None:
         """Pause / resume reading the socket (back-pressure while requests are queued)."""
