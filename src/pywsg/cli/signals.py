@@ -1,7 +1,7 @@
 """Leaving on a signal without a FAST STOP.
 
 A WSG raises FAST STOP when its TCP client goes away without announcing it (07h, command manual
-000 §3.1.2). A `wsg` command killed by SIGTERM (``timeout 0.8 wsg move 0``), SIGHUP (the terminal
+000 §1.4.2, §3.1.2). A `wsg` command killed by SIGTERM (``timeout 0.8 wsg move 0``), SIGHUP (the terminal
 of a ``wsg monitor`` closed) or SIGINT (Ctrl-C) therefore unwinds like an exception: the command's
 ``finally``/``with`` blocks close the connection, which announces the disconnect, and the process
 exits with the shell convention 128 + signal number (130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP).
