@@ -195,7 +195,7 @@ def test_https_session_cookie_is_secure(tmp_path: Path) -> None:
 
 
 def test_live_clients_are_capped(tmp_path: Path) -> None:
-    from pywsg.web.app import MAX_LIVE_CLIENTS
+    from pywsg.web.live import MAX_LIVE_CLIENTS
 
     s = LiveSim(tmp_path)
     url = s.url.replace("http", "ws") + "/ws"

@@ -23,6 +23,9 @@ _SUBCOMMANDS: dict[str, str] = {
     "sim": "pywsg.cli.sim:sim",
     "plc-demo": "pywsg.cli.plc:plc_demo",
     "demo": "pywsg.cli.demo:demo",
+    "world": "pywsg.cli.world:world",
+    "proxy": "pywsg.cli.proxy:proxy",
+    "replay": "pywsg.cli.replay:replay",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"
@@ -96,7 +99,7 @@ class LazyGroup(click.Group):
 @click.option(
     "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True,
     help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500]?reply_port=1501, "
-    "serial:///dev/ttyUSB0?baudrate=115200 (or set WSG_URL).",
+    "serial:///dev/ttyUSB0?baudrate=115200, can://can0?interface=socketcan (or set WSG_URL).",
 )
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
 @click.option("--log", "log_flag", is_flag=True,

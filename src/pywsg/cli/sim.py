@@ -73,6 +73,12 @@ def _json_line(line: str) -> str:
               help="Run N independent grippers on consecutive ports.")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
+@click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
+              help="Start with a part of WIDTH mm between the fingers (wsg world: change it later).")
+@click.option("--block", "block_width", type=float, default=None, metavar="WIDTH",
+              help="Start with a rigid obstacle in the fingers' way at WIDTH mm.")
+@click.option("--scenario", "scenario_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="Run a scenario (TOML timeline of world events, see docs/testing.md).")
 @click.option("-v", "--verbose", count=True, help="Log every command (-v) and more (-vv).")
 @click.option("--json", "as_json", is_flag=True,
               help='One JSON object per line: {"event": "interface", "gripper": 0, "kind": "tcp", "url": ...}, '
@@ -94,6 +100,9 @@ def sim(
     settings_file: Path | None,
     count: int,
     use_uvloop: bool | None,
+    part_width: float | None,
+    block_width: float | None,
+    scenario_file: Path | None,
     verbose: int,
     as_json: bool,
 ) -> None:
@@ -143,8 +152,26 @@ def sim(
     def echo(line: str) -> None:
         click.echo(_json_line(line) if as_json else line)
 
+    from ..testing.scenario import Scenario, ScenarioError
+    from ..testing.world import WorldError
+
     try:
-        _run(run_sim(options, echo=echo), use_uvloop)
+        scenario = Scenario.load(scenario_file) if scenario_file else None
+    except ScenarioError as exc:
+        raise click.BadParameter(str(exc), param_hint="--scenario") from None
+
+    def on_start(server: Any) -> None:
+        from ..testing.host import setup_world
+
+        def said(i: int, t: float, text: str) -> None:
+            click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
+
+        setup_world(server, part=part_width, block=block_width, scenario=scenario, on_action=said)
+
+    try:
+        _run(run_sim(options, echo=echo, on_start=on_start), use_uvloop)
+    except WorldError as exc:
+        raise click.BadParameter(str(exc), param_hint="--part/--block") from None
     except SimError as exc:
         raise click.ClickException(str(exc)) from None
     except KeyboardInterrupt:  # signal handlers cover the loop; this covers start-up

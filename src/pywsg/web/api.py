@@ -1,0 +1,201 @@
+"""The JSON API under ``/api``: state, commands to the fingers, settings, log and fieldbus.
+
+Every motion, Stop and Ack is an ordinary request frame on the web interface's own device session
+(``context.CommandBridge``), so the web obeys the rules a TCP client meets. Answers: 200 done,
+202 E_CMD_PENDING (the final result follows on the WebSocket), 409 refused by the device, 422
+invalid input naming each field. Bodies are strict: JSON types must match, unknown fields refused.
+Units: mm, mm/s, mm/s², N, °C. Fault injection is in ``sim_api.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+from typing import Any, Literal
+
+from fastapi import APIRouter, Request
+from fastapi.responses import JSONResponse, Response
+from pydantic import BaseModel, ConfigDict, Field
+
+from .. import __version__
+from ..protocol import Command, HomingDirection, Status
+from .context import WebContext, command_result, error, motion_limits
+from .fieldbus_view import fieldbus_view
+from .reference import catalog_json
+from .security import WebSession
+from .views import coerce_setting, field_of_error, jsonable, settings_schema
+
+log = logging.getLogger(__name__)
+
+
+class StrictBody(BaseModel):
+    """Request bodies: JSON types must match; out-of-range values are 422."""
+
+    model_config = ConfigDict(strict=True, extra="forbid")
+
+
+class HomeBody(StrictBody):
+    direction: Literal["default", "positive", "negative"] = "default"
+
+
+class MoveBody(StrictBody):
+    width: float = Field(ge=0, allow_inf_nan=False, description="opening width, mm")
+    speed: float = Field(gt=0, allow_inf_nan=False, description="mm/s")
+    relative: bool = False
+    stop_on_block: bool = False
+
+
+class GripBody(StrictBody):
+    width: float = Field(ge=0, allow_inf_nan=False, description="nominal part width, mm")
+    speed: float = Field(gt=0, allow_inf_nan=False, description="mm/s")
+    force: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="force limit, N")
+
+
+class ReleaseBody(StrictBody):
+    width: float = Field(ge=0, allow_inf_nan=False, description="opening width, mm")
+    speed: float = Field(gt=0, allow_inf_nan=False, description="mm/s")
+
+
+def router(ctx: WebContext) -> APIRouter:
+    """The routes under /api except /api/sim."""
+    r = APIRouter(prefix="/api")
+    bridge = ctx.bridge
+
+    @r.get("/csrf")
+    async def csrf(request: Request) -> dict[str, Any]:
+        """The session's CSRF token (same-origin pages and scripts only: no CORS)."""
+        s: WebSession = request.state.websession
+        return {"token": s.csrf, "authenticated": s.authenticated, "can_write": ctx.auth.may_write(s),
+                "login_possible": ctx.auth.login_possible}
+
+    @r.get("/state")
+    async def state() -> dict[str, Any]:
+        """Snapshot: width mm, speed mm/s, force N, temperature °C, flags, gripper state."""
+        return ctx.state()
+
+    @r.get("/info")
+    async def info() -> dict[str, Any]:
+        status, values = bridge.send(Command.GET_SYSTEM_INFO, record=False)
+        return {"model": ctx.model_name(), "system_info": jsonable(values) if status == Status.E_SUCCESS else None,
+                "limits": bridge.limits(), "sim": jsonable(ctx.sim_info), "version": __version__,
+                "simulation": ctx.has_faults(), "fieldbus": ctx.fieldbus is not None,
+                "settings_file": str(ctx.settings_path) if ctx.settings_path else None}
+
+    # -- the fingers ------------------------------------------------------------------------------
+    @r.post("/stop")
+    async def stop() -> JSONResponse:
+        return command_result(Command.STOP, bridge.send(Command.STOP)[0])
+
+    @r.post("/fast-stop")
+    async def fast_stop() -> JSONResponse:
+        return command_result(Command.FAST_STOP, bridge.send(Command.FAST_STOP)[0])
+
+    @r.post("/ack")
+    async def ack() -> JSONResponse:
+        return command_result(Command.ACK_FAST_STOP, bridge.send(Command.ACK_FAST_STOP, key="ack")[0])
+
+    @r.post("/home")
+    async def home(body: HomeBody | None = None) -> JSONResponse:
+        direction = HomingDirection[(body.direction if body else "default").upper()]
+        return command_result(Command.HOMING, bridge.send(Command.HOMING, direction=int(direction))[0])
+
+    @r.post("/move")
+    async def move(body: MoveBody) -> JSONResponse:
+        motion_limits(ctx, body.width, body.speed, relative=body.relative)
+        flags = (1 if body.relative else 0) | (2 if body.stop_on_block else 0)
+        status, _ = bridge.send(Command.PREPOSITION, flags=flags, width=body.width, speed=body.speed)
+        return command_result(Command.PREPOSITION, status)
+
+    @r.post("/grip")
+    async def grip(body: GripBody) -> JSONResponse:
+        motion_limits(ctx, body.width, body.speed, body.force)
+        if body.force is not None:
+            status, _ = bridge.send(Command.SET_FORCE_LIMIT, force=body.force)
+            if status != Status.E_SUCCESS:
+                return command_result(Command.SET_FORCE_LIMIT, status)
+        status, _ = bridge.send(Command.GRIP_PART, width=body.width, speed=body.speed)
+        return command_result(Command.GRIP_PART, status)
+
+    @r.post("/release")
+    async def release(body: ReleaseBody) -> JSONResponse:
+        motion_limits(ctx, body.width, body.speed)
+        status, _ = bridge.send(Command.RELEASE_PART, width=body.width, speed=body.speed)
+        return command_result(Command.RELEASE_PART, status)
+
+    @r.get("/results")
+    async def results(after: int = 0) -> list[dict[str, Any]]:
+        """Results of commands sent from the web interface (immediate and final)."""
+        return [e for e in bridge.results if e["seq"] > after]
+
+    # -- settings ---------------------------------------------------------------------------------
+    def settings_body() -> dict[str, Any]:
+        current = ctx.gripper.settings
+        return {"values": jsonable(current), "fields": settings_schema(current),
+                "settings_file": str(ctx.settings_path) if ctx.settings_path else None,
+                "interfaces": jsonable(ctx.sim_info)}
+
+    @r.get("/settings")
+    async def get_settings() -> dict[str, Any]:
+        return settings_body()
+
+    @r.post("/settings")
+    async def post_settings(request: Request) -> Response:
+        """Change some settings: a JSON object {name: value}. 422 names each refused field."""
+        try:
+            raw = json.loads(await request.body())
+        except (ValueError, UnicodeDecodeError):
+            return error(422, "invalid input: body is not JSON", {"_": "body is not JSON"})
+        if not isinstance(raw, dict) or not raw:
+            return error(422, "invalid input: expected a JSON object of settings",
+                         {"_": "expected a JSON object {name: value}"})
+        current = ctx.gripper.settings
+        schema = {e["name"]: e for e in settings_schema(current)}
+        changes: dict[str, Any] = {}
+        errors: dict[str, str] = {}
+        for name, value in raw.items():
+            if name not in schema:
+                errors[name] = "unknown setting"
+                continue
+            try:
+                changes[name] = coerce_setting(schema[name], value, getattr(current, name))
+            except ValueError as exc:
+                errors[name] = str(exc)
+        if errors:
+            return error(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
+        try:
+            new = dataclasses.replace(current, **changes)
+            ctx.gripper.apply_settings(new)
+        except (ValueError, TypeError) as exc:
+            field, reason = field_of_error(str(exc), list(schema))
+            return error(422, f"invalid input: {exc}", {field: reason})
+        saved = None
+        if ctx.settings_path is not None:
+            try:
+                ctx.gripper.settings.save(ctx.settings_path)
+                saved = str(ctx.settings_path)
+            except OSError as exc:
+                return error(500, f"applied, but not saved to {ctx.settings_path}: {exc}")
+        log.info("web: settings changed: %s", ", ".join(changes))
+        body = settings_body()
+        body["changed"] = sorted(changes)
+        body["saved"] = saved
+        return JSONResponse(body)
+
+    # -- diagnosis --------------------------------------------------------------------------------
+    @r.get("/log")
+    async def get_log(after: int = 0, limit: int = 500) -> Response:
+        if after < 0 or not 1 <= limit <= 2000:
+            return error(422, "invalid input: after >= 0, 1 <= limit <= 2000",
+                         {"after" if after < 0 else "limit": "out of range"})
+        return JSONResponse({"entries": ctx.log_feed.after(after, limit), "last": ctx.log_feed.seq})
+
+    @r.get("/fieldbus")
+    async def get_fieldbus() -> dict[str, Any]:
+        return fieldbus_view(ctx.fieldbus)
+
+    @r.get("/commands")
+    async def commands() -> list[dict[str, Any]]:
+        return catalog_json()
+
+    return r

@@ -1,0 +1,85 @@
+"""The live WebSocket ``/ws``: ~20 Hz updates of state, log, command results and fieldbus.
+
+One message per update period (``context.UPDATE_PERIOD_S``): ``{"type": "update", "t", "state",
+"log"?, "results"?, "fieldbus"?}``; the snapshot is computed once per period for all clients
+(``WebContext.cached``). At most ``MAX_LIVE_CLIENTS`` at once (close code 1013 beyond). Reading
+rules as for the pages; the Origin must name this server (close code 1008 otherwise).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import time
+from typing import Any
+
+from fastapi import APIRouter, WebSocket
+
+from .auth import same_origin
+from .context import UPDATE_PERIOD_S, WebContext
+from .fieldbus_view import fieldbus_view
+from .security import COOKIE_NAME
+
+MAX_LIVE_CLIENTS = 32  # WebSocket clients per interface: each costs a snapshot every 50 ms
+
+
+def router(ctx: WebContext) -> APIRouter:
+    r = APIRouter()
+
+    @r.websocket("/ws")
+    async def live(websocket: WebSocket) -> None:
+        """~20 Hz: state, new log entries, new command results, and (``?fieldbus=1``) the registers."""
+        s = ctx.auth.lookup(websocket.cookies.get(COOKIE_NAME))
+        if not ctx.auth.may_read(s) or not same_origin(websocket):
+            await websocket.close(code=1008)
+            return
+        await websocket.accept()
+        if ctx.live_clients >= MAX_LIVE_CLIENTS:
+            await websocket.close(code=1013, reason="too many live clients")  # try again later
+            return
+        ctx.live_clients += 1
+        q = websocket.query_params
+        want_fieldbus = q.get("fieldbus") == "1"
+        log_after = _int(q.get("log"), ctx.log_feed.seq)
+        results_after = _int(q.get("results"), ctx.bridge.seq)
+        closed = asyncio.create_task(_wait_closed(websocket))
+        try:
+            while not ctx.closing.is_set() and not closed.done():
+                msg: dict[str, Any] = {"type": "update", "t": time.time(), "state": ctx.cached("state", ctx.state)}
+                entries = ctx.log_feed.after(log_after)
+                if entries:
+                    msg["log"] = entries
+                    log_after = entries[-1]["seq"]
+                results = [e for e in ctx.bridge.results if e["seq"] > results_after]
+                if results:
+                    msg["results"] = results
+                    results_after = results[-1]["seq"]
+                if want_fieldbus:
+                    msg["fieldbus"] = ctx.cached("fieldbus", lambda: fieldbus_view(ctx.fieldbus))
+                await websocket.send_text(json.dumps(msg, allow_nan=False))
+                await asyncio.wait([closed], timeout=UPDATE_PERIOD_S)
+        except Exception:  # the client went away mid-send: nothing to clean up but the task
+            pass
+        finally:
+            ctx.live_clients -= 1
+            closed.cancel()
+            with contextlib.suppress(Exception):
+                await websocket.close()
+
+    return r
+
+
+async def _wait_closed(websocket: WebSocket) -> None:
+    with contextlib.suppress(Exception):
+        while True:
+            message = await websocket.receive()
+            if message.get("type") == "websocket.disconnect":
+                return
+
+
+def _int(text: str | None, default: int) -> int:
+    try:
+        return int(text) if text is not None else default
+    except ValueError:
+        return default
