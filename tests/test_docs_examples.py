@@ -8,8 +8,8 @@ The rules, for whoever writes docs:
   fingers, not referenced at first), like a reader following along in a second terminal.
 * The sim runs on free ports, so the harness rewrites the default ones in each block:
   ``tcp://127.0.0.1:1000``, ``udp://127.0.0.1:1500`` (replies to 1501), the web port 8080 and the
-  Modbus port 5020. ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address. Lines that start ``wsg sim`` are dropped from sh
-  blocks: that sim is the one already running.
+  Modbus port 5020. ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
+  Lines that start ``wsg sim`` are dropped from sh blocks: that sim is the one already running.
 * ```` ```text ```` blocks are output or syntax shown to the reader and never run. Every other block
   needs a language, and a block that must not run (a real gripper's address, an endless server, an API
   summary) is marked on the line just before it with ``<!-- not-run: the reason -->``; the reason is
@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from .cli.conftest import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -96,12 +98,6 @@ def blocks_of(page: Path) -> list[Block]:
     return out
 
 
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 class PageSim:
     """One `wsg sim` for a page, as the docs start it, on free ports."""
 
@@ -162,8 +158,8 @@ def _tail(text: str, lines: int = 25) -> str:
 def run_block(block: Block, sim: PageSim, workdir: Path) -> str | None:
     """Run one block; None when it worked, else a readable report."""
     code = sim.rewrite(block.code)
-    env = {**os.environ, "WSG_URL": sim.urls["tcp"], "WSG_SIM": sim.urls["web"], "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}",
-           "COLUMNS": "120", "NO_COLOR": "1", "PYTHONUNBUFFERED": "1"}
+    env = {**os.environ, "WSG_URL": sim.urls["tcp"], "WSG_SIM": sim.urls["web"], "COLUMNS": "120",
+           "NO_COLOR": "1", "PYTHONUNBUFFERED": "1", "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     if block.lang in RUN_PY:
         script = workdir / f"block_{block.line}.py"
         script.write_text(code, encoding="utf-8")

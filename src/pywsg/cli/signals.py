@@ -38,10 +38,13 @@ def _raise(signum: int, _frame: FrameType | None) -> None:
 
 
 def install() -> None:
-    """Turn SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` in the main thread."""
+    """Turn SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` in the main thread.
+
+    A signal the parent set to be ignored stays ignored (``nohup wsg monitor``, a shell's ``&``)."""
     for sig in SIGNALS:
         with contextlib.suppress(ValueError, OSError):  # not the main thread / not on this OS
-            signal.signal(sig, _raise)
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                signal.signal(sig, _raise)
 
 
 def run(coro: Coroutine[Any, Any, T]) -> T:
@@ -60,6 +63,8 @@ def run(coro: Coroutine[Any, Any, T]) -> T:
                 task.cancel()
 
         for sig in SIGNALS:
+            if signal.getsignal(sig) is signal.SIG_IGN:
+                continue  # ignored by the parent: keep it so
             with contextlib.suppress(NotImplementedError, ValueError, RuntimeError):
                 loop.add_signal_handler(sig, stop, sig)
         return await coro
