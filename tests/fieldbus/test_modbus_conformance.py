@@ -13,7 +13,10 @@ import socket
 from collections.abc import AsyncIterator
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
+from pywsg.fieldbus.modbus import check_pdu
 from pywsg.server import SimServer
 
 from .raw_modbus import adu, exchange, read_adus, registers
@@ -118,3 +121,28 @@ async def test_an_mbap_length_beyond_the_adu_limit_closes_the_connection(port: i
             s.sendall(bytes([0, 1, 0, 0, 0xFF, 0xFF, 1, 3]))
             return s.recv(64)
     assert await asyncio.to_thread(run) == b""
+
+
+@given(st.binary(min_size=1, max_size=253))
+def test_check_pdu_answers_any_pdu(pdu: bytes) -> None:
+    """Any PDU gets None (pymodbus may execute it) or one of the spec's exceptions 01, 02, 03 — never a crash."""
+    code = check_pdu(pdu)
+    assert code is None or int(code) in (1, 2, 3)
+    if code is None:
+        assert pdu[0] in (1, 2, 3, 4, 5, 6, 15, 16, 23)
+
+
+async def test_garbage_then_a_request_on_a_fresh_connection(port: int) -> None:
+    """Random bytes cost the sender its connection at worst, never the server (the next client is served)."""
+    def garbage() -> None:
+        with socket.create_connection(("127.0.0.1", port), timeout=3) as s:
+            s.sendall(bytes(range(256)) * 8)
+            s.settimeout(0.5)
+            try:
+                while s.recv(4096):
+                    pass
+            except (TimeoutError, ConnectionError):
+                pass
+    await asyncio.to_thread(garbage)
+    reply = await _one(port, bytes([0x04, 0, 0, 0, 6]))
+    assert reply[:2] == bytes([0x04, 12]) and len(reply) == 14

@@ -1,8 +1,9 @@
 """Modbus/TCP server for the fieldbus interface: the only module importing pymodbus server APIs.
 
-pymodbus is pinned to 3.16.x (its datastore API changes between minor releases). In 3.16 the
-supported hook is ``pymodbus.simulator.SimDevice(id=0, simdata=..., action=callback)``; the action
-runs before a write is stored and may return an exception code. We keep four separate blocks:
+pymodbus ``>=3.13.1,<3.17`` (its server API changes between minor releases: 3.13.0 and older lack
+what is used here, 3.17 does not exist yet; 3.13.1, 3.14.0, 3.15.0 and 3.16.1 pass tests/fieldbus).
+The hook is ``pymodbus.simulator.SimDevice(id=0, simdata=..., action=callback)``; the action runs
+before a write is stored and may return an exception code. We keep four separate blocks:
 
 =====================  ==========  ===============================================
 table                  addresses   content
@@ -39,6 +40,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from ..server.conncap import cap_modbus_server
 from .controller import FieldbusController
 from .image import COILS, DISCRETE_INPUTS, INPUT_REGISTERS, OUTPUT_REGISTERS, InputImage, OutputImage, int_of
 
@@ -61,14 +63,35 @@ MAX_MBAP_LENGTH = 254
 MAX_QUEUED = 64
 
 
-def check_pdu(pdu: bytes) -> ExcCodes | None:
-    """The exception a request PDU earns before any address is looked at, or None if it is well formed.
+#: Size of the table each function code addresses (coils, discrete inputs, holding / input registers).
+_TABLE_SIZE = {1: COILS, 5: COILS, 15: COILS, 2: DISCRETE_INPUTS, 3: OUTPUT_REGISTERS, 6: OUTPUT_REGISTERS,
+               16: OUTPUT_REGISTERS, 23: OUTPUT_REGISTERS, 4: INPUT_REGISTERS}
 
-    Modbus Application Protocol V1.1b3: a function code the WSG map does not serve → 01 ILLEGAL
-    FUNCTION; a quantity outside its range, a byte count that does not match it, a wrong PDU length
-    or an FC5 value other than FF00h / 0000h → 03 ILLEGAL DATA VALUE (the spec checks the function
-    code, then the quantity, then the address: addresses are pymodbus' part, 02).
+
+def check_pdu(pdu: bytes) -> ExcCodes | None:
+    """The exception a request PDU earns, or None if pymodbus may execute it.
+
+    Modbus Application Protocol V1.1b3, in the spec's order: a function code the WSG map does not
+    serve → 01 ILLEGAL FUNCTION; a quantity outside its range, a byte count that does not match it,
+    a wrong PDU length or an FC5 value other than FF00h / 0000h → 03 ILLEGAL DATA VALUE; a range
+    beyond the table (coils 0..15, discrete inputs 0..47, holding registers 0..3, input registers
+    0..5) → 02 ILLEGAL DATA ADDRESS. Checked here so the answers do not depend on the pymodbus release.
     """
+    code = _check_value(pdu)
+    if code is not None:
+        return code
+    fc, body = pdu[0], pdu[1:]
+    size = _TABLE_SIZE[fc]
+    ranges = [(body[0] << 8 | body[1], 1 if fc in (5, 6) else body[2] << 8 | body[3])]
+    if fc == _FC_READ_WRITE:
+        ranges.append((body[4] << 8 | body[5], body[6] << 8 | body[7]))
+    if any(start + count > size for start, count in ranges):
+        return ExcCodes.ILLEGAL_ADDRESS
+    return None
+
+
+def _check_value(pdu: bytes) -> ExcCodes | None:
+    """Function code (01) and quantity / length / value (03) checks of :func:`check_pdu`."""
     fc = pdu[0]
     if fc not in _SERVED_FCS:
         return ExcCodes.ILLEGAL_FUNCTION
@@ -273,15 +296,17 @@ class ModbusHandle:
 
 
 async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD_PORT,
-                       controller: FieldbusController | None = None) -> ModbusHandle:
+                       controller: FieldbusController | None = None, max_connections: int = 32) -> ModbusHandle:
     """Serve ``gripper``'s fieldbus interface over Modbus/TCP on ``host:port`` (port 0: any free port).
 
     Runs on the current event loop; the gripper must be polled by a runner (e.g.
     ``pywsg.server.DeviceRunner``) so motions finish. Raises OSError if the port cannot be bound.
+    At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``).
     """
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
+    cap_modbus_server(server, max_connections)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
         ctl.close()

@@ -8,6 +8,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``pages``    the HTML pages and the menu
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
+- ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
 
 Units everywhere: mm, mm/s, mm/s², N, °C. See docs/web.md for the API and the security rules.
@@ -48,6 +49,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     auth.router,
     api.router,
     sim_api.router,
+    world_api.router,
     live.router,
 ]
 
@@ -83,7 +85,6 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     auth.install_guard(app, ctx)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
-    app.include_router(world_api.router)  # world control for scripts (wsg world, curl, pywsg.testing)
     return app
 
 
@@ -142,7 +143,8 @@ def _bind(host: str, port: int) -> socket.socket:
 
 async def serve_web(gripper: Any, host: str, port: int, *, password: str | None = None, fieldbus: Any = None,
                     sim_info: Any = None, settings_path: str | Path | None = None,
-                    ssl_certfile: str | None = None, ssl_keyfile: str | None = None) -> WebHandle:
+                    ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
+                    max_connections: int = 64) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -150,6 +152,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     Fieldbus Monitor shows. ``sim_info``: what the simulator serves (interfaces and ports), shown
     under Settings → Command Interface. ``settings_path``: where changed settings are saved
     (default: ``gripper.settings_path`` when present). ``ssl_certfile``/``ssl_keyfile``: serve HTTPS.
+    ``max_connections``: open HTTP/WebSocket connections at a time; more are refused.
     """
     loopback = is_loopback_host(host)
     if not loopback and password is None:
@@ -159,12 +162,14 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
         raise ValueError("password must be 1..256 characters")
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
                      settings_path=settings_path)
+    from ..server.conncap import capped_http_protocol
+
     sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
     real_port = int(sock.getsockname()[1])
     config = uvicorn.Config(
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, server_header=False,
+        ws_ping_interval=None, server_header=False, http=capped_http_protocol(max_connections),
     )
     server = _Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")
