@@ -147,7 +147,12 @@ def test_arbitrary_garbage_is_bounded_and_recovers(garbage_parts, frame, chunk) 
     # once enough bytes have arrived (a forged header may still be waiting), the frame comes out
     seen += p.feed(b"\x00" * (MAX_PAYLOAD + 8))
     if request_max_payload(cid) >= len(payload):
-        assert Frame(cid, payload) in frames_of(seen)
+        got = frames_of(seen)
+        # A forged header in the garbage whose frame happens to pass the 16-bit CRC (1 in 65,536) is a real
+        # frame to any receiver, and it may swallow the good one: then that frame must reach into it.
+        swallowed = [f for f in got if f != Frame(cid, payload)
+                     and f.encode() in stream and stream.find(f.encode()) + len(f.encode()) > len(garbage)]
+        assert Frame(cid, payload) in got or swallowed
 
 
 # -- hostile input: bounded work (docs/sim.md "Hostile input", docs/fidelity.md) ----------------
