@@ -166,7 +166,7 @@ def router(ctx: WebContext) -> APIRouter:
         try:
             new = dataclasses.replace(current, **changes)
             ctx.gripper.apply_settings(new)
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, OverflowError) as exc:
             field, reason = field_of_error(str(exc), list(schema))
             return error(422, f"invalid input: {exc}", {field: reason})
         saved = None

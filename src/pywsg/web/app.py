@@ -22,7 +22,7 @@ import logging
 import secrets
 import socket
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -53,8 +53,14 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
 
 
 def create_app(gripper: Any, *, loopback: bool = True, password: str | None = None, fieldbus: Any = None,
-               sim_info: Any = None, settings_path: str | Path | None = None) -> FastAPI:
-    """The ASGI app for ``gripper``. ``loopback``: whether it is bound to a loopback address only."""
+               sim_info: Any = None, settings_path: str | Path | None = None, host: str | None = None,
+               allowed_hosts: Sequence[str] = ()) -> FastAPI:
+    """The ASGI app for ``gripper``. ``loopback``: whether it is bound to a loopback address only.
+
+    ``host``: the bound address (``Host`` headers naming it are accepted; None or a wildcard
+    address: any IP address literal); ``allowed_hosts``: further names it is reached by, besides
+    localhost, 127.0.0.1 and [::1].
+    """
     if settings_path is None:
         settings_path = getattr(gripper, "settings_path", None)
     ctx = WebContext(
@@ -80,7 +86,7 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     async def _input_error(request: Request, exc: InputError) -> JSONResponse:
         return error(422, f"invalid input: {exc}", exc.errors)
 
-    auth.install_guard(app, ctx)
+    auth.install_guard(app, ctx, bound=host, allowed_hosts=allowed_hosts)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
     return app
@@ -141,7 +147,8 @@ def _bind(host: str, port: int) -> socket.socket:
 
 async def serve_web(gripper: Any, host: str, port: int, *, password: str | None = None, fieldbus: Any = None,
                     sim_info: Any = None, settings_path: str | Path | None = None,
-                    ssl_certfile: str | None = None, ssl_keyfile: str | None = None) -> WebHandle:
+                    ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
+                    allowed_hosts: Sequence[str] = ()) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -149,6 +156,8 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     Fieldbus Monitor shows. ``sim_info``: what the simulator serves (interfaces and ports), shown
     under Settings → Command Interface. ``settings_path``: where changed settings are saved
     (default: ``gripper.settings_path`` when present). ``ssl_certfile``/``ssl_keyfile``: serve HTTPS.
+    ``allowed_hosts``: names besides the bound address, localhost, 127.0.0.1 and [::1] that the
+    ``Host`` header may carry (e.g. ``["gripper.cell4.local"]``); others get 400 (DNS rebinding).
     """
     loopback = is_loopback_host(host)
     if not loopback and password is None:
@@ -157,7 +166,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     if password is not None and (not password or len(password) > 256):
         raise ValueError("password must be 1..256 characters")
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
-                     settings_path=settings_path)
+                     settings_path=settings_path, host=host, allowed_hosts=allowed_hosts)
     sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
     real_port = int(sock.getsockname()[1])
     config = uvicorn.Config(
