@@ -83,29 +83,33 @@ def router(ctx: WebContext) -> APIRouter:
                 "settings_file": str(ctx.settings_path) if ctx.settings_path else None}
 
     # -- the fingers ------------------------------------------------------------------------------
+    def run(command: Command, **values: Any) -> JSONResponse:
+        """Send one command on the web's device session; its answer as HTTP (see ``command_result``)."""
+        status, replied = bridge.send(command, **values)
+        return command_result(command, status, replied, seq=bridge.last_seq)
+
     @r.post("/stop")
     async def stop() -> JSONResponse:
-        return command_result(Command.STOP, bridge.send(Command.STOP)[0])
+        return run(Command.STOP)
 
     @r.post("/fast-stop")
     async def fast_stop() -> JSONResponse:
-        return command_result(Command.FAST_STOP, bridge.send(Command.FAST_STOP)[0])
+        return run(Command.FAST_STOP)
 
     @r.post("/ack")
     async def ack() -> JSONResponse:
-        return command_result(Command.ACK_FAST_STOP, bridge.send(Command.ACK_FAST_STOP, key="ack")[0])
+        return run(Command.ACK_FAST_STOP, key="ack")
 
     @r.post("/home")
     async def home(body: HomeBody | None = None) -> JSONResponse:
         direction = HomingDirection[(body.direction if body else "default").upper()]
-        return command_result(Command.HOMING, bridge.send(Command.HOMING, direction=int(direction))[0])
+        return run(Command.HOMING, direction=int(direction))
 
     @r.post("/move")
     async def move(body: MoveBody) -> JSONResponse:
         motion_limits(ctx, body.width, body.speed, relative=body.relative)
         flags = (1 if body.relative else 0) | (2 if body.stop_on_block else 0)
-        status, _ = bridge.send(Command.PREPOSITION, flags=flags, width=body.width, speed=body.speed)
-        return command_result(Command.PREPOSITION, status)
+        return run(Command.PREPOSITION, flags=flags, width=body.width, speed=body.speed)
 
     @r.post("/grip")
     async def grip(body: GripBody) -> JSONResponse:
@@ -113,15 +117,13 @@ def router(ctx: WebContext) -> APIRouter:
         if body.force is not None:
             status, _ = bridge.send(Command.SET_FORCE_LIMIT, force=body.force)
             if status != Status.E_SUCCESS:
-                return command_result(Command.SET_FORCE_LIMIT, status)
-        status, _ = bridge.send(Command.GRIP_PART, width=body.width, speed=body.speed)
-        return command_result(Command.GRIP_PART, status)
+                return command_result(Command.SET_FORCE_LIMIT, status, seq=bridge.last_seq)
+        return run(Command.GRIP_PART, width=body.width, speed=body.speed)
 
     @r.post("/release")
     async def release(body: ReleaseBody) -> JSONResponse:
         motion_limits(ctx, body.width, body.speed)
-        status, _ = bridge.send(Command.RELEASE_PART, width=body.width, speed=body.speed)
-        return command_result(Command.RELEASE_PART, status)
+        return run(Command.RELEASE_PART, width=body.width, speed=body.speed)
 
     @r.get("/results")
     async def results(after: int = 0) -> list[dict[str, Any]]:

@@ -7,6 +7,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
+- ``device_api`` identity (50h–52h) and the Motion page's commands (42h, 34h–38h, jog)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``live``     the WebSocket /ws (20 Hz updates)
 
@@ -33,7 +34,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, live, pages, sim_api
+from . import api, auth, device_api, live, pages, sim_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -47,6 +48,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     pages.router,
     auth.router,
     api.router,
+    device_api.router,
     sim_api.router,
     live.router,
 ]

@@ -49,19 +49,24 @@ def template(name: str) -> Template:
 
 
 def nav(current: str) -> str:
+    """The menu bar; a menu with several pages is a WAI-ARIA disclosure (a button that opens a list)."""
     parts = []
     for title, items in MENU:
         active = any(href == current for href, _ in items)
         if len(items) == 1:
             href, _ = items[0]
-            parts.append(f"<li class='{'active' if active else ''}'><a href='{href}'>{escape(title)}</a></li>")
+            here = " aria-current='page'" if active else ""
+            parts.append(f"<li class='{'active' if active else ''}'><a href='{href}'{here}>{escape(title)}</a></li>")
             continue
         links = "".join(
-            f"<li><a href='{href}' class='{'active' if href == current else ''}'>{escape(label)}</a></li>"
+            f"<li><a href='{href}' class='{'active' if href == current else ''}'"
+            f"{' aria-current=page' if href == current else ''}>{escape(label)}</a></li>"
             for href, label in items
         )
-        parts.append(f"<li class='menu {'active' if active else ''}'><span>{escape(title)}</span>"
-                     f"<ul>{links}</ul></li>")
+        menu_id = "menu-" + title.lower()
+        parts.append(f"<li class='menu {'active' if active else ''}'>"
+                     f"<button type='button' aria-expanded='false' aria-controls='{menu_id}'>{escape(title)}</button>"
+                     f"<ul id='{menu_id}' hidden>{links}</ul></li>")
     return "<ul class='nav'>" + "".join(parts) + "</ul>"
 
 
@@ -96,9 +101,11 @@ def router(ctx: WebContext) -> APIRouter:
 
     def make(path: str, title: str, tpl: str, script: str) -> Callable[[Request], Awaitable[HTMLResponse]]:
         group = "interface" if path.endswith("interface") else "motion"
+        panels = template(f"{group}_panels.html").template if tpl == "settings.html" else ""
 
         async def page(request: Request) -> HTMLResponse:
-            return render_page(ctx, request, path, title, tpl, script, group=group, heading=escape(title))
+            return render_page(ctx, request, path, title, tpl, script, group=group, heading=escape(title),
+                               panels=panels)
 
         return page
 
