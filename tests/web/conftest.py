@@ -59,7 +59,18 @@ class LiveSim:
         kwargs: dict[str, Any] = {"fieldbus": self.modbus.controller, "sim_info": sim_info,
                                   "settings_path": self.settings_path}
         kwargs.update(self.web_kwargs)
+        self._serve_kwargs = kwargs
         self.web: WebHandle = await serve_web(self.gripper, self.host, 0, **kwargs)
+
+    def stop_web(self) -> int:
+        """Stop the web interface (as when the simulator stops); its port, for ``start_web``."""
+        port = self.web.port
+        self.run(self.web.close())
+        return port
+
+    def start_web(self, port: int) -> None:
+        """Serve the web interface again on ``port``: a new app, so every session is gone (a restart)."""
+        self.web = self.run(serve_web(self.gripper, self.host, port, **self._serve_kwargs))
 
     @property
     def url(self) -> str:
