@@ -9,9 +9,12 @@ Units: mm, mm/s, mm/s², N, °C. Fault injection is in ``sim_api.py``.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
 import logging
+import time
 from typing import Any, Literal
 
 from fastapi import APIRouter, Request
@@ -19,6 +22,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from .. import __version__
+from ..device import LogLevel
 from ..protocol import Command, HomingDirection, Status
 from .context import WebContext, command_result, error, motion_limits
 from .fieldbus_view import fieldbus_view
@@ -55,6 +59,32 @@ class GripBody(StrictBody):
 class ReleaseBody(StrictBody):
     width: float = Field(ge=0, allow_inf_nan=False, description="opening width, mm")
     speed: float = Field(gt=0, allow_inf_nan=False, description="mm/s")
+
+
+def iso_time(t: Any) -> str:
+    """Wall-clock seconds as ISO 8601 UTC with milliseconds: ``2026-11-24T18:25:03.123Z``."""
+    if not isinstance(t, int | float):
+        return ""
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(t)) + f".{int(t % 1 * 1000):03d}Z"
+
+
+def _shown(value: Any) -> str:
+    return "(none)" if value is None else json.dumps(jsonable(value))
+
+
+def record_changes(ctx: WebContext, before: Any, changes: dict[str, Any]) -> None:
+    """One System Log line per changed setting: which, from what, to what (issue 15 item 12)."""
+    add = getattr(getattr(ctx.gripper, "log", None), "add", None)
+    if not callable(add):
+        return
+    units = {e["name"]: e.get("unit") or "" for e in settings_schema(before)}
+    for name, new in changes.items():
+        old = getattr(before, name, None)
+        if old == new:
+            continue
+        unit = f" {units[name]}" if units.get(name) else ""
+        add(ctx.gripper.clock(), LogLevel.INFO,
+            f"setting {name} changed from {_shown(old)} to {_shown(new)}{unit} (web interface)")
 
 
 def router(ctx: WebContext) -> APIRouter:
@@ -179,6 +209,7 @@ def router(ctx: WebContext) -> APIRouter:
             except OSError as exc:
                 return error(500, f"applied, but not saved to {ctx.settings_path}: {exc}")
         log.info("web: settings changed: %s", ", ".join(changes))
+        record_changes(ctx, current, changes)
         body = settings_body()
         body["changed"] = sorted(changes)
         body["saved"] = saved
@@ -191,6 +222,24 @@ def router(ctx: WebContext) -> APIRouter:
             return error(422, "invalid input: after >= 0, 1 <= limit <= 2000",
                          {"after" if after < 0 else "limit": "out of range"})
         return JSONResponse({"entries": ctx.log_feed.after(after, limit), "last": ctx.log_feed.seq})
+
+    @r.get("/log/export")
+    async def export_log(format: Literal["csv", "json"] = "csv") -> Response:
+        """The whole log as a file: CSV (seq, ISO time UTC, level, message) or JSON lines."""
+        entries = ctx.log_feed.after(0, ctx.log_feed.entries.maxlen or 2000)
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        if format == "json":
+            text = "".join(json.dumps({**e, "iso_time": iso_time(e.get("wall_time"))}) + "\n" for e in entries)
+            media = "application/x-ndjson"
+        else:
+            out = io.StringIO()
+            w = csv.writer(out)
+            w.writerow(["seq", "time_utc", "level", "message"])
+            for e in entries:
+                w.writerow([e["seq"], iso_time(e.get("wall_time")), e.get("level", ""), e.get("message", "")])
+            text, media = out.getvalue(), "text/csv; charset=utf-8"
+        name = f"wsg-system-log-{stamp}.{'jsonl' if format == 'json' else 'csv'}"
+        return Response(text, media_type=media, headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
     @r.get("/fieldbus")
     async def get_fieldbus() -> dict[str, Any]:

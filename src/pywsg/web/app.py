@@ -30,8 +30,9 @@ from typing import Any
 import uvicorn
 from fastapi import APIRouter, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
 from . import api, auth, device_api, live, pages, sim_api
@@ -83,6 +84,14 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
             loc = [str(p) for p in err.get("loc", ()) if p not in ("body", "query", "path")]
             errors[".".join(loc) or "_"] = str(err.get("msg", "invalid"))
         return error(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
+        # a browser asking for a page gets a page; API clients and scripts get the JSON error
+        wants_page = not request.url.path.startswith("/api/") and "text/html" in request.headers.get("accept", "")
+        if exc.status_code == 404 and wants_page and hasattr(request.state, "websession"):
+            return pages.not_found_page(ctx, request, f"There is no page {request.url.path}.")
+        return error(exc.status_code, str(exc.detail), headers=exc.headers)
 
     @app.exception_handler(InputError)
     async def _input_error(request: Request, exc: InputError) -> JSONResponse:

@@ -213,12 +213,15 @@ def router(ctx: WebContext) -> APIRouter:
         form = await _form(request)
         target = safe_next(form.get("next", "/"))
         client = request.client.host if request.client else "?"
+        # the login form is a page: its refusals are pages too (the JSON API answers JSON)
         if not ctx.auth.csrf_ok(s, form.get(CSRF_FIELD)):
-            return error(403, "missing or wrong CSRF token")
+            return login_html(ctx, request, target, "The login form had expired: please try again.", status=403)
         if not ctx.auth.login_possible:
             return error(400, "no password is set: this interface needs no login")
         if ctx.auth.throttled(client):
-            return error(429, "too many failed logins; wait a minute")
+            log.warning("web: login locked for %s (too many failed attempts)", client)
+            return login_html(ctx, request, target, "Too many failed logins from your address: the login is "
+                              "locked for a minute. Wait, then try again.", status=429)
         fresh = ctx.auth.login(s, form.get("password", ""), client)
         if fresh is None:
             log.warning("web: failed login from %s", client)

@@ -37,11 +37,13 @@ class InputError(Exception):
         self.errors = errors
 
 
-def error(status: int, detail: str, errors: Mapping[str, str] | None = None) -> JSONResponse:
+def error(status: int, detail: str, errors: Mapping[str, str] | None = None,
+          headers: Mapping[str, str] | None = None) -> JSONResponse:
+    """The one JSON error style: ``{"detail": text, "errors": {field: reason}}``."""
     body: dict[str, Any] = {"detail": detail}
     if errors is not None:
         body["errors"] = dict(errors)
-    return JSONResponse(body, status_code=status)
+    return JSONResponse(body, status_code=status, headers=dict(headers) if headers else None)
 
 
 # -- the device side ------------------------------------------------------------------------------

@@ -13,11 +13,11 @@ from pathlib import Path
 from string import Template
 from urllib.parse import quote
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, HTTPException, Request
 from fastapi.responses import HTMLResponse, PlainTextResponse, Response
 
 from .. import __version__
-from .context import WebContext, error
+from .context import WebContext
 from .reference import command_reference_html
 from .security import CSRF_FIELD, WebSession
 
@@ -89,6 +89,19 @@ def render_page(ctx: WebContext, request: Request, path: str, title: str, body_t
     return HTMLResponse(page, headers={"Cache-Control": "no-store"})
 
 
+def not_found_page(ctx: WebContext, request: Request, what: str) -> HTMLResponse:
+    """The 404 page in the interface's frame (the menu still works from it)."""
+    body = (f"<p class='banner bad' role='alert'>{escape(what)}</p>"
+            "<p>The page may have moved; the menu above leads to every page of the interface. "
+            "<a href='/'>Back to the Control Panel</a>.</p>")
+    s: WebSession = request.state.websession
+    page = template("base.html").safe_substitute(
+        title="Page not found", model=escape(ctx.model_name()), nav=nav(""), body=body, csrf=escape(s.csrf),
+        user="", script="notfound", version=escape(__version__),
+        can_write="true" if ctx.auth.may_write(s) else "false")
+    return HTMLResponse(page, status_code=404, headers={"Cache-Control": "no-store"})
+
+
 def doc_files() -> list[str]:
     if not PROJECT_DOCS.is_dir():
         return []
@@ -123,7 +136,7 @@ def router(ctx: WebContext) -> APIRouter:
     @r.get("/docs/{name}", response_class=PlainTextResponse)
     async def doc_file(name: str) -> Response:
         if name not in doc_files():  # only listed files: no path traversal
-            return error(404, f"no document {name!r}")
+            raise HTTPException(404, f"no document {name!r}")
         return PlainTextResponse((PROJECT_DOCS / name).read_text(encoding="utf-8"),
                                  media_type="text/markdown; charset=utf-8")
 

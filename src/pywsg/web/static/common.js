@@ -277,6 +277,7 @@
   document.addEventListener("DOMContentLoaded", function () {
     setupMenus();
     for (const form of document.querySelectorAll("form.cmd")) {
+      form.noValidate = true;  // one error style: the server's reason beside the field, not a browser bubble
       form.addEventListener("submit", function (ev) {
         ev.preventDefault();
         submit(form, "POST", form.dataset.endpoint);

@@ -39,4 +39,25 @@
     requestAnimationFrame(frame);
   }
   requestAnimationFrame(frame);
+
+  // allowed ranges beside the inputs before a submit (53h system limits)
+  WSG.api("GET", "/api/info").then(function (r) {
+    const lim = r.ok && r.data.limits;
+    if (!lim || lim.stroke === undefined) return;
+    const ranges = {
+      width: [0, lim.stroke, "mm"], speed: [lim.min_speed, lim.max_speed, "mm/s"],
+      force: [lim.min_force, Math.max(lim.ovr_force || 0, lim.nom_force || 0), "N"],
+    };
+    for (const input of document.querySelectorAll("main form.cmd input[type=number]")) {
+      const rg = ranges[input.name];
+      if (!rg || rg[0] === undefined || rg[1] === undefined) continue;
+      input.min = rg[0]; input.max = rg[1];
+      const hint = document.createElement("span");
+      hint.className = "range";
+      hint.id = input.closest("form").id + "-" + input.name + "-range";
+      hint.textContent = "allowed " + rg[0] + " … " + rg[1] + " " + rg[2];
+      input.setAttribute("aria-describedby", hint.id);
+      input.closest("label").appendChild(hint);
+    }
+  });
 })();

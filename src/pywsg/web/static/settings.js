@@ -6,6 +6,7 @@
   const tbody = document.querySelector("#settings-table tbody");
   let fields = [];
   let values = {};
+  const POWER_CYCLE = ["model", "serial_number", "finger1", "finger2"];  // like a real device: a restart
 
   function input(f, value) {
     const kind = f.kind.replace("?", "");
@@ -94,6 +95,11 @@
     }
     const out = document.getElementById("settings-result");
     if (!Object.keys(changes).length) { out.textContent = "nothing changed"; out.className = "result"; return; }
+    const cycling = Object.keys(changes).filter(function (k) { return POWER_CYCLE.indexOf(k) >= 0; });
+    if (cycling.length && !window.confirm("Changing " + cycling.join(", ") + " power-cycles the virtual gripper: " +
+        "a running motion stops and homing is lost (the fingers must be referenced again). Apply?")) {
+      out.textContent = "not applied"; out.className = "result"; return;
+    }
     const r = await WSG.api("POST", "/api/settings", changes);
     WSG.showErrors(form, r.data && r.data.errors);
     if (r.ok) {
