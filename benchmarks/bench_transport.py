@@ -14,8 +14,13 @@
 Servers run in their own processes (the client does not share their GIL). Both are run on stock
 asyncio and, when installed, on uvloop.
 
+CAN (``--can``): round trips of the same 41h request over python-can's ``virtual`` bus (the inferred
+mapping of docs/sim.md: 8-byte CAN frames, requests on 01h, replies on 02h), the sim in a thread of
+this process (a virtual bus does not cross processes), beside TCP and UDP to the same sim in the
+same conditions: a raw python-can client, ``Gripper`` and ``AsyncGripper``.
+
     .venv/bin/python benchmarks/bench_transport.py [--parts 1,2,3] [--counts 1,50,200] [--seconds 3]
-        [--loops asyncio,uvloop] [--search-seconds 2]
+        [--loops asyncio,uvloop] [--search-seconds 2] [--can [--can-round-trips 3000]]
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from collections.abc import Callable
 
 import psutil
 
@@ -132,8 +138,8 @@ def stop(proc: subprocess.Popen[str]) -> None:
 def sim_cmd(loop: str, base: int, count: int, udp: bool) -> list[str]:
     return [
         PY, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(base),
-        "--udp-port", str(base + count) if udp else "0", "--udp-reply-port", "0", "--serial", "off",
-        "--web-port", "0", "--count", str(count), "--uvloop" if loop == "uvloop" else "--no-uvloop",
+        "--udp-port", str(base + count) if udp else "off", "--udp-reply-port", "0", "--serial", "off",
+        "--web-port", "off", "--count", str(count), "--uvloop" if loop == "uvloop" else "--no-uvloop",
     ]
 
 
@@ -320,6 +326,87 @@ def bench_capacity(loop: str, seconds: float) -> None:
           f"ratio {ratio:.2f} (target >= 0.7)")
 
 
+# -- CAN ---------------------------------------------------------------------------------
+
+
+def _lat_stats(lat: list[int]) -> str:
+    lat.sort()
+    rate = len(lat) / (sum(lat) / 1e9)
+    return f"{rate:8.0f}/s p50 {lat[len(lat) // 2] / 1e3:7.1f} µs p99 {lat[int(len(lat) * 0.99)] / 1e3:7.1f} µs"
+
+
+def _timed_calls(fn: Callable[[], object], n: int) -> list[int]:
+    clock = time.perf_counter_ns
+    for _ in range(200):
+        fn()
+    lat = []
+    for _ in range(n):
+        t0 = clock()
+        fn()
+        lat.append(clock() - t0)
+    return lat
+
+
+def bench_can(n: int) -> None:
+    import asyncio
+    import threading
+    import uuid
+
+    import can
+
+    from pywsg import AsyncGripper, Gripper
+    from pywsg.protocol import FrameParser
+    from pywsg.server import SimOptions, SimServer
+
+    channel = f"bench-{uuid.uuid4().hex[:8]}"
+    loop = asyncio.new_event_loop()
+    threading.Thread(target=loop.run_forever, daemon=True).start()
+    sim = SimServer(SimOptions(tcp_port=0, udp_port=0, udp_reply_port=None, serial=None, web_port=None,
+                               can_channel=channel))
+    asyncio.run_coroutine_threadsafe(sim.start(), loop).result(10)
+    urls = {"CAN": f"can://{channel}?interface=virtual", "TCP": str(sim.grippers[0].tcp_url),
+            "UDP": f"udp://127.0.0.1:{sim.udp_port}?reply_port=0"}
+    try:
+        bus = can.Bus(interface="virtual", channel=channel,
+                      can_filters=[{"can_id": 0x02, "can_mask": 0x7FF, "extended": False}])
+        msgs = [can.Message(arbitration_id=0x01, data=REQ[i:i + 8], is_extended_id=False)
+                for i in range(0, len(REQ), 8)]
+        parser = FrameParser()
+
+        def raw() -> None:
+            for m in msgs:
+                bus.send(m)
+            while True:
+                msg = bus.recv(5)
+                assert msg is not None, "no reply"
+                if parser.feed(bytes(msg.data)):
+                    return
+
+        print(f"  raw python-can client, CAN       {_lat_stats(_timed_calls(raw, n))}")
+        bus.shutdown()
+        for name, url in urls.items():
+            with Gripper(url, timeout=5) as g:
+                print(f"  Gripper.gripper_state(), {name}      {_lat_stats(_timed_calls(g.gripper_state, n))}")
+
+        async def aio(url: str) -> list[int]:
+            async with AsyncGripper(url, timeout=5) as g:
+                for _ in range(200):
+                    await g.gripper_state()
+                lat = []
+                clock = time.perf_counter_ns
+                for _ in range(n):
+                    t0 = clock()
+                    await g.gripper_state()
+                    lat.append(clock() - t0)
+                return lat
+
+        for name, url in urls.items():
+            print(f"  AsyncGripper.gripper_state(), {name} {_lat_stats(asyncio.run(aio(url)))}")
+    finally:
+        asyncio.run_coroutine_threadsafe(sim.close(save=False), loop).result(10)
+        loop.call_soon_threadsafe(loop.stop)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--counts", default="1,50,200", help="gripper counts for the timing test")
@@ -335,10 +422,17 @@ def main() -> None:
     except ImportError:
         pass
     ap.add_argument("--loops", default=",".join(loops))
+    ap.add_argument("--can", action="store_true", help="only the CAN round trips (python-can virtual bus)")
+    ap.add_argument("--can-round-trips", type=int, default=3000)
     args = ap.parse_args()
     load = os.getloadavg()[0]
     print(f"machine: {os.cpu_count()} cores, load average {load:.2f} at start, Python {sys.version.split()[0]}")
     parts = args.parts.split(",")
+    if args.can:
+        print(f"CAN round trips of a 41h request, {args.can_round_trips} each, sim in this process "
+              "(python-can virtual bus; TCP/UDP to the same sim for comparison)")
+        bench_can(args.can_round_trips)
+        parts = []
     if "1" in parts:
         print("1. round trips of a 41h request (blocking raw-socket client)")
         for loop in args.loops.split(","):

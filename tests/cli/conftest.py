@@ -65,7 +65,7 @@ class Sim:
         self.tcp_port = free_port()
         self.udp_port = free_port(socket.SOCK_DGRAM)
         argv = [str(WSG), "sim", "--no-uvloop", "--tcp-port", str(self.tcp_port), "--udp-port", str(self.udp_port),
-                "--udp-reply-port", "0", "--serial", "off", "--web-port", "0"]
+                "--udp-reply-port", "0", "--serial", "off", "--web-port", "off"]
         self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.banner: list[str] = []
         deadline = time.monotonic() + 15

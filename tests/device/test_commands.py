@@ -87,13 +87,6 @@ def test_homing_aborted_by_stop(rig: Rig) -> None:
     assert not rig.flags() & SF.SF_REFERENCED
 
 
-def test_homing_blocked_by_obstacle(rig: Rig) -> None:
-    rig.g.faults.block_at(80.0)
-    rig.status(0x20, direction=1)
-    assert [f.status for f in rig.run(5)] == [S.E_AXIS_BLOCKED]
-    assert not rig.flags() & SF.SF_REFERENCED
-
-
 def test_homing_ignores_soft_limits(homed: Rig) -> None:
     assert homed.status(0x34, minus=10.0, plus=90.0) == S.E_SUCCESS
     assert homed.status(0x20, direction=1) == S.E_CMD_PENDING  # at 110, inside the restricted area
@@ -192,10 +185,6 @@ def test_fast_stop_and_ack(homed: Rig) -> None:
     assert homed.status(0x21, flags=0, width=50.0, speed=50.0) == S.E_CMD_PENDING
     assert any("FAST STOP" in m for m in homed.g.log.messages())
 
-
-def test_fast_stop_when_idle_keeps_state(homed: Rig) -> None:
-    assert homed.status(0x23) == S.E_SUCCESS
-    assert homed.gstate() == GripperState.IDLE
 
 
 # 3.2.6 Grip

@@ -20,8 +20,6 @@ def test_generic_finger(rig: Rig, base: int) -> None:
     assert rig.value(base) == {"type": FingerType.GENERIC, "size": 0}
     assert rig.value(base + 1)["flags"] == FingerFlag.POWER_ON
     assert rig.status(base + 3) == S.E_NOT_AVAILABLE
-    for cid in (base, base + 1, base + 3):
-        assert rig.status(cid, b"\x00") == S.E_NO_PARAM_EXPECTED
     assert rig.status(base + 2, b"") == S.E_CMD_FORMAT_ERROR
     assert rig.status(base + 2, power=2) == S.E_INVALID_PARAMETER
 
@@ -64,3 +62,12 @@ def test_dsa_finger_data_frame() -> None:
     assert len(data) == size
     cells = struct.unpack(f"<{DSA_ROWS * DSA_COLS}H", data)
     assert max(cells) == 1600 and sum(1 for c in cells if c) == 24
+
+
+@pytest.mark.parametrize("cid", [0x60, 0x61, 0x63, 0x70, 0x71, 0x73])
+def test_finger_command_with_stray_payload_is_format_error(rig: Rig, cid: int) -> None:
+    """000 §3.6.1–3.6.8 list only E_CMD_FORMAT_ERROR ("Command length mismatch") for a wrong length:
+    the command's own list wins over the generic E_NO_PARAM_EXPECTED (issue 12 item 7)."""
+    assert rig.status(cid, b"\x00") == S.E_CMD_FORMAT_ERROR
+    assert rig.status(cid, b"\x01\x02\x03") == S.E_CMD_FORMAT_ERROR
+    assert rig.status(0x31, b"\x00") == S.E_NO_PARAM_EXPECTED  # 31h lists E_NO_PARAM_EXPECTED (000 §3.3.2)

@@ -151,7 +151,8 @@ def test_faststop_during_motion_then_ack_rules(rig: Rig) -> None:
     rig.write(C.MOVE, width=20, speed=400)
     rig.run(0.05)
     img = rig.write(C.FASTSTOP)
-    assert img.sysstate & SF.SF_FAST_STOP and img.state == GS.ERROR and img.status == Status.E_SUCCESS
+    # 002 §4.6 / 003 §5.6: "The gripper state is set to IDLE", also when a motion was cut
+    assert img.sysstate & SF.SF_FAST_STOP and img.state == GS.IDLE and img.status == Status.E_SUCCESS
     # motion refused while FAST STOP is pending
     rig.write(C.NONE)
     assert rig.write(C.MOVE, width=50, speed=400).status == Status.E_ACCESS_DENIED
@@ -211,7 +212,8 @@ def test_parameter_change_while_moving_raises_fast_stop(rig: Rig, param: str) ->
     rig.run(0.05)
     kw: dict[str, float | int] = {"width": 21.0, "speed": 310.0, "force": 4100}
     img = rig.write(C.MOVE, **{param: kw[param]})  # type: ignore[arg-type]
-    assert img.sysstate & SF.SF_FAST_STOP and img.state == GS.ERROR and img.status == Status.E_CMD_ABORTED
+    # a FAST STOP from any source sets the gripper state to IDLE (002 §4.6 / 003 §5.6)
+    assert img.sysstate & SF.SF_FAST_STOP and img.state == GS.IDLE and img.status == Status.E_CMD_ABORTED
 
 
 def test_parameter_change_while_idle_is_fine(rig: Rig) -> None:

@@ -85,12 +85,14 @@ def test_input_image_layout_and_units() -> None:
     data = image.pack()
     assert len(data) == 12
     assert data[0] == GState.HOLDING == 0x10 and data[1] == 0x81
-    assert int.from_bytes(data[2:6], "big") == int(flags)
+    # 002 §2.3 / App. D: flag bit n is byte 2 + n // 8, bit n % 8 (REFERENCED byte 2 bit 0,
+    # FAST_STOP = bit 12 byte 3 bit 4, SCRIPT_FAILURE = bit 20 byte 4 bit 4).
+    assert data[2:6] == bytes([0x01, 0x10, 0x10, 0x00])
     assert int.from_bytes(data[6:8], "big") == 1220
     assert int.from_bytes(data[8:10], "big") == 4050
     assert int.from_bytes(data[10:12], "big") == 26
     regs = image.registers()
-    assert regs == [0x1081, int(flags) >> 16, int(flags) & 0xFFFF, 1220, 4050, 26]
+    assert regs == [0x1081, 0x0110, 0x1000, 1220, 4050, 26]
     assert InputImage.from_registers(regs) == image
     assert image.state == GripperState.HOLDING and image.status_code == Status.E_CMD_PENDING
 
@@ -103,10 +105,13 @@ def test_gstate_is_one_hot() -> None:
 
 
 def test_discrete_inputs_follow_the_flag_order() -> None:
+    """002 §2.3: discrete inputs in the natural order of the bits, starting with byte 0 bit 0."""
     image = InputImage(GState.IDLE, 0x02, SystemFlag.SF_REFERENCED | SystemFlag.SF_FAST_STOP)
     di = image.discrete_inputs()
     assert len(di) == 48
     assert [i for i, b in enumerate(di) if b] == [0, 9, 16, 28]   # IDLE, OF2, REFERENCED, FAST_STOP
+    data = image.pack()
+    assert di == [bool(data[i // 8] >> (i % 8) & 1) for i in range(48)]
 
 
 def test_negative_width_saturates_on_the_device_side() -> None:

@@ -25,7 +25,9 @@ def test_message_layout() -> None:
     assert msg[3] == 2                         # master address
     assert msg[4:6] == b"\x55\x55"             # slave ident 5555h
     assert msg[6] == 0x0A                      # length 10 bytes
-    assert int.from_bytes(msg[7:11], "big") == int(flags)
+    # "Same coding as SYSSTATE" (002 §3.3): REFERENCED byte 7 bit 0, FAST_STOP (bit 12) byte 8 bit 4
+    assert msg[7:11] == bytes([0x01, 0x10, 0x00, 0x00])
+    assert msg[7:11] == InputImage(sysstate=flags).pack()[2:6]
     assert msg[11:] == bytes(5)                # reserved
     parsed = parse_diagnosis(msg)
     assert parsed.sysstate == flags and parsed.ident == 0x5555 and parsed.length == 10

@@ -75,7 +75,7 @@ def test_wsg_sim_two_grippers_tcp_udp_pty_then_sigterm(tmp_path: Path) -> None:
     settings = tmp_path / "wsg.json"
     proc, lines = start_sim(
         "--tcp-port", str(base), "--udp-port", str(base + 100), "--udp-reply-port", "0",
-        "--serial", "pty", "--web-port", "0", "--settings", str(settings), "--count", "2", "--no-uvloop",
+        "--serial", "pty", "--web-port", "off", "--settings", str(settings), "--count", "2", "--no-uvloop",
         lines=6,
     )
     try:
@@ -105,7 +105,7 @@ def test_wsg_sim_modbus_and_web_interfaces() -> None:
     pytest.importorskip("uvicorn")
     base = free_base(3)
     proc, lines = start_sim(
-        "--tcp-port", str(base), "--udp-port", "0", "--serial", "off", "--modbus-port", str(base + 1),
+        "--tcp-port", str(base), "--udp-port", "off", "--serial", "off", "--modbus-port", str(base + 1),
         "--web-port", str(base + 2), lines=3,
     )
     try:
@@ -137,7 +137,7 @@ def test_wsg_sim_port_in_use_is_a_clear_error() -> None:
     try:
         r = subprocess.run(
             [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", str(port),
-             "--udp-port", "0", "--serial", "off", "--web-port", "0"],
+             "--udp-port", "off", "--serial", "off", "--web-port", "off"],
             capture_output=True, text=True, timeout=20,
         )
     finally:

@@ -21,6 +21,7 @@ import click
 from ..client import AsyncGripper
 from ..errors import WsgError
 from ..protocol import GripperState
+from .runner import EXIT_CONNECTION, PORT
 
 
 @click.command()
@@ -28,31 +29,48 @@ from ..protocol import GripperState
 @click.option("--model", default="wsg50", show_default=True,
               type=click.Choice(["wsg50", "wsg32", "wsg25", "wsg70"]), help="Device profile.")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address the virtual gripper binds.")
-@click.option("--tcp-port", default=1000, show_default=True, type=click.IntRange(0, 65535),
-              help="TCP command interface port (0: any free port).")
-@click.option("--web-port", default=8080, show_default=True, type=click.IntRange(0, 65535),
-              help="Web interface port (0: any free port).")
-@click.option("--modbus-port", default=5020, show_default=True, type=click.IntRange(0, 65535),
-              help="Modbus/TCP port (0: any free port; the standard 502 needs root).")
-@click.option("--part-width", default=30.0, show_default=True, type=float, help="Width of the part placed, mm.")
-@click.option("--open-width", default=60.0, show_default=True, type=float, help="Pre-position width, mm.")
-@click.option("--speed", default=100.0, show_default=True, type=float, help="Travel speed, mm/s.")
-@click.option("--force", default=40.0, show_default=True, type=float, help="Gripping force limit, N.")
-@click.option("--hold", default=1.0, show_default=True, type=float, help="Seconds to hold the part.")
+@click.option("--tcp-port", default="1000", show_default=True, type=PORT,
+              help="TCP command interface port (0: any free port; the demo drives the gripper over it).")
+@click.option("--web-port", default="8080", show_default=True, type=PORT,
+              help="Web interface port (0: any free port, off: none).")
+@click.option("--modbus-port", default="5020", show_default=True, type=PORT,
+              help="Modbus/TCP port (0: any free port, off: none; the standard 502 needs root).")
+@click.option("--part-width", default=30.0, show_default=True, type=click.FloatRange(0, min_open=True),
+              help="Width of the part placed, mm.")
+@click.option("--open-width", default=60.0, show_default=True, type=click.FloatRange(0, min_open=True),
+              help="Pre-position width, mm.")
+@click.option("--speed", default=100.0, show_default=True, type=click.FloatRange(0, min_open=True),
+              help="Travel speed, mm/s (the gripper clamps it to its limits).")
+@click.option("--force", default=40.0, show_default=True, type=click.FloatRange(0, min_open=True),
+              help="Gripping force limit, N.")
+@click.option("--hold", default=1.0, show_default=True, type=click.FloatRange(0), help="Seconds to hold the part.")
 @click.option("--exit", "exit_after", is_flag=True, help="Stop after the cycles instead of serving on.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per step on stdout.")
-def demo(cycles: int, model: str, host: str, tcp_port: int, web_port: int, modbus_port: int, part_width: float,
-         open_width: float, speed: float, force: float, hold: float, exit_after: bool, as_json: bool) -> None:
+@click.pass_context
+def demo(ctx: click.Context, cycles: int, model: str, host: str, tcp_port: int | None, web_port: int | None,
+         modbus_port: int | None, part_width: float, open_width: float, speed: float, force: float, hold: float,
+         exit_after: bool, as_json: bool) -> None:
     """Run a virtual WSG with its web interface and drive gripping cycles against it.
 
     Widths in mm, speeds in mm/s, forces in N. Ctrl-C stops the virtual gripper.
     """
+    from ..server.sim import SimError
+
+    as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json
+    if tcp_port is None:
+        raise click.BadParameter("the demo drives the gripper over TCP: give a port (0: any free port)",
+                                 param_hint="--tcp-port")
     try:
         ok = asyncio.run(_demo(cycles=cycles, model=model, host=host, tcp_port=tcp_port, web_port=web_port,
                                modbus_port=modbus_port, part_width=part_width, open_width=open_width,
                                speed=speed, force=force, hold=hold, exit_after=exit_after, as_json=as_json))
-    except KeyboardInterrupt:
-        ok = True
+    except (SimError, OSError) as exc:  # a port taken, an address not ours: say which, no traceback
+        if as_json:
+            _say(as_json, "error", "", error=str(exc))
+        click.echo(f"error: {exc}", err=True)
+        click.echo("hint: another `wsg sim`/`wsg demo` may be running; stop it, or pick other ports "
+                   "(--tcp-port 0 --web-port 0 --modbus-port 0: any free ones)", err=True)
+        raise SystemExit(EXIT_CONNECTION) from None
     raise SystemExit(0 if ok else 1)
 
 
@@ -63,7 +81,8 @@ def _say(as_json: bool, event: str, text: str, **data: Any) -> None:
         click.echo(text)
 
 
-async def _demo(*, cycles: int, model: str, host: str, tcp_port: int, web_port: int, modbus_port: int,
+async def _demo(*, cycles: int, model: str, host: str, tcp_port: int, web_port: int | None,
+                modbus_port: int | None,
                 part_width: float, open_width: float, speed: float, force: float, hold: float,
                 exit_after: bool, as_json: bool) -> bool:
     from ..server import SimServer

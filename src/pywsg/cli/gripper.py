@@ -6,12 +6,12 @@ widths are mm, speeds mm/s, accelerations mm/s², forces N, temperatures °C.
 
 from __future__ import annotations
 
-import asyncio
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 import click
 
+from . import signals
 from .runner import Options, common_options, emit, fail, options
 
 Action = Callable[[Any], Awaitable[Any]]
@@ -46,11 +46,9 @@ def run(ctx: click.Context, kw: dict[str, Any], action: Action, motion_timeout: 
     opts = options(ctx, kw.pop("as_json"), kw.pop("log_flag"), kw.pop("log_file"), kw.pop("timeout"))
     ctx.meta["wsg_json"] = opts.as_json
     try:
-        return asyncio.run(_session(opts, action, motion_timeout))
-    except KeyboardInterrupt:
-        raise
+        return signals.run(_session(opts, action, motion_timeout))
     except Exception as exc:  # WsgError, OSError, ValueError from the driver: all reported the same way
-        fail(exc, opts.as_json)
+        fail(exc, opts.as_json, opts.url)
 
 
 def as_json(ctx: click.Context) -> bool:
@@ -77,8 +75,26 @@ def _readback(g: Any) -> Awaitable[float]:
     return g.width()  # type: ignore[no-any-return]
 
 
-SPEED = click.option("--speed", type=click.FloatRange(min=0), default=DEFAULT_SPEED, show_default=True,
-                     metavar="MM/S", help="Finger speed in mm/s (the gripper clamps it to its limits).")
+SPEED = click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_SPEED,
+                     show_default=True, metavar="MM/S",
+                     help="Finger speed in mm/s, more than 0 (the gripper clamps it to its limits).")
+
+#: Widths may be negative (``wsg move --relative -5``): such an argument is a number, not an option.
+NUMBERS = {"ignore_unknown_options": True}
+
+
+def warn(text: str) -> None:
+    click.echo(f"warning: {text}", err=True)
+
+
+async def _check_stroke(g: Any, width: float, relative: bool) -> None:
+    """Warn when the target is outside 0..stroke: the gripper clamps it (000 §3.2.2), so the motion
+    ends elsewhere than asked (the web API refuses the same request with 422)."""
+    stroke = (await g.limits()).stroke
+    target = (await g.width()) + width if relative else width
+    if target > stroke or target < 0:
+        edge = stroke if target > stroke else 0.0
+        warn(f"{target:g} mm is outside the stroke 0..{stroke:g} mm: the gripper clamps the target to {edge:g} mm")
 
 
 # -- motion ------------------------------------------------------------------------------------
@@ -97,7 +113,7 @@ def home(ctx: click.Context, /, direction: str, wait: bool, motion_timeout: floa
     _done(ctx, "home", run(ctx, kw, act, motion_timeout))
 
 
-@click.command()
+@click.command(context_settings=NUMBERS)
 @click.argument("width", type=float)
 @SPEED
 @click.option("--relative", is_flag=True, help="WIDTH is a distance from the current width (mm, may be negative).")
@@ -110,6 +126,7 @@ def move(ctx: click.Context, /, width: float, speed: float, relative: bool, stop
          motion_timeout: float, **kw: Any) -> None:
     """Pre-position the fingers (21h) to WIDTH mm (or by WIDTH mm with --relative)."""
     async def act(g: Any) -> dict[str, Any]:
+        await _check_stroke(g, width, relative)
         await g.move(width, speed, relative=relative, stop_on_block=stop_on_block, wait=wait)
         return {"width": await _readback(g)} if wait else {"pending": True}
     _done(ctx, "move", run(ctx, kw, act, motion_timeout))

@@ -65,7 +65,7 @@ def _show_file(path: Path, follow: bool, as_json: bool, duration: float | None) 
 
 @click.command("log")
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path), required=False)
-@click.option("-f", "--follow", is_flag=True, help="With FILE: keep reading as the file grows (tail -f).")
+@click.option("--follow", is_flag=True, help="With FILE: keep reading as the file grows (like tail -f).")
 @click.option("--subscribe", "streams", type=click.Choice(sorted(STREAMS)), multiple=True,
               help="Without FILE: start this auto-update stream (repeatable).")
 @click.option("--period", type=click.IntRange(10, 65535), default=100, show_default=True, metavar="MS",
@@ -81,7 +81,7 @@ def log_cmd(ctx: click.Context, /, file: Path | None, follow: bool, streams: tup
 
     \b
     wsg log session.jsonl           print a log written with --log-file
-    wsg log -f session.jsonl        ... and keep following it
+    wsg log --follow session.jsonl  ... and keep following it
     wsg log --subscribe width       own session: log auto-updates; stdin lines are sent:
       echo 'get-system-state 0 0 0' | wsg log --duration 1
     """

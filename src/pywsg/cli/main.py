@@ -6,10 +6,13 @@ and ``wsg decode`` stay fast. Register a new one in ``_SUBCOMMANDS``: name -> "m
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.util
 import logging
 import os
+import signal
+import sys
 
 import click
 
@@ -20,11 +23,23 @@ _SUBCOMMANDS: dict[str, str] = {
     "sim": "pywsg.cli.sim:sim",
     "plc-demo": "pywsg.cli.plc:plc_demo",
     "demo": "pywsg.cli.demo:demo",
+    "world": "pywsg.cli.world:world",
+    "proxy": "pywsg.cli.proxy:proxy",
+    "replay": "pywsg.cli.replay:replay",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"
 
 DEFAULT_URL = "tcp://127.0.0.1:1000"
+
+#: The sections of ``wsg --help``; a command in none of them is listed under "other".
+SECTIONS: dict[str, tuple[str, ...]] = {
+    "Motion": ("home", "move", "grip", "release", "stop", "fast-stop", "ack"),
+    "State": ("state", "info", "width", "speed", "force", "gripper-state", "flags", "temp", "limits", "stats",
+              "monitor"),
+    "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
+    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "world", "proxy", "replay"),
+}
 
 
 class LazyGroup(click.Group):
@@ -52,6 +67,23 @@ class LazyGroup(click.Group):
                 out.append(name)
         return out
 
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The subcommands in sections (motion, state, configuration, tools), each in the order people
+        reach for them."""
+        found: dict[str, click.Command] = {}
+        for name in self.list_commands(ctx):
+            cmd = self.get_command(ctx, name)
+            if cmd is not None and not cmd.hidden:
+                found[name] = cmd
+        limit = formatter.width - 6 - max((len(n) for n in found), default=0)
+        placed: set[str] = set()
+        for title, names in [*SECTIONS.items(), ("Other", tuple(sorted(found)))]:
+            rows = [(n, found[n].get_short_help_str(limit)) for n in names if n in found and n not in placed]
+            placed.update(n for n, _ in rows)
+            if rows:
+                with formatter.section(title):
+                    formatter.write_dl(rows)
+
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name in _SUBCOMMANDS and cmd_name in self._available():
             module_name, attr = _SUBCOMMANDS[cmd_name].split(":")
@@ -67,7 +99,7 @@ class LazyGroup(click.Group):
 @click.option(
     "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True,
     help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500]?reply_port=1501, "
-    "serial:///dev/ttyUSB0?baudrate=115200 (or set WSG_URL).",
+    "serial:///dev/ttyUSB0?baudrate=115200, can://can0?interface=socketcan (or set WSG_URL).",
 )
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
 @click.option("--log", "log_flag", is_flag=True,
@@ -83,7 +115,13 @@ def cli(ctx: click.Context, url: str, verbose: int, log_flag: bool, log_file: st
     Units everywhere: widths in mm, speeds in mm/s, accelerations in mm/s², forces in N.
     """
     level = logging.WARNING - 10 * min(verbose, 2)
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if verbose:
+        logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    else:
+        logging.basicConfig(level=level, format="warning: %(message)s")
+        # the driver's WARNING on a lost connection would repeat the error line the command prints
+        logging.getLogger("pywsg.client").setLevel(logging.ERROR)
+        logging.getLogger("pymodbus").setLevel(logging.ERROR)  # its bind failure repeats our error line
     ctx.ensure_object(dict)
     ctx.obj["url"] = url
     ctx.obj["verbose"] = verbose
@@ -93,5 +131,13 @@ def cli(ctx: click.Context, url: str, verbose: int, log_flag: bool, log_file: st
 
 
 def main() -> None:
-    """Console entry point."""
-    cli(prog_name="wsg", auto_envvar_prefix=None if os.environ.get("WSG_NO_ENV") else "WSG")
+    """Console entry point: exits 128 + N on signal N (130 on Ctrl-C) after closing the gripper cleanly."""
+    from . import signals
+
+    signals.install()
+    try:
+        cli(prog_name="wsg", auto_envvar_prefix=None if os.environ.get("WSG_NO_ENV") else "WSG")
+    except signals.Interrupted as exc:
+        with contextlib.suppress(OSError):
+            click.echo(f"wsg: stopped by {signal.Signals(exc.signum).name}", err=True)
+        sys.exit(exc.exit_code)

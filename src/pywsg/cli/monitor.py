@@ -21,6 +21,7 @@ from typing import Any
 
 import click
 
+from . import signals
 from .runner import Options, common_options, fail, jsonable, options
 
 BARS = "▁▂▃▄▅▆▇█"
@@ -228,8 +229,6 @@ def monitor(ctx: click.Context, /, period: int, refresh: float, duration: float 
     """
     opts = options(ctx, kw.pop("as_json"), kw.pop("log_flag"), kw.pop("log_file"), kw.pop("timeout"))
     try:
-        asyncio.run(_monitor(opts, period / 1000.0, duration, refresh))
-    except KeyboardInterrupt:
-        pass
+        signals.run(_monitor(opts, period / 1000.0, duration, refresh))
     except Exception as exc:
-        fail(exc, opts.as_json)
+        fail(exc, opts.as_json, opts.url)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
+import json
 import sys
 import time
 from collections.abc import AsyncIterator, Callable
@@ -21,6 +23,7 @@ import click
 from ..fieldbus.image import CmdFlag, OutputImage
 from ..fieldbus.plc import AsyncFieldbusGripper, GrippingCycle
 from ..protocol import GState
+from .runner import EXIT_CONNECTION
 
 
 @dataclass
@@ -88,44 +91,102 @@ async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[int]
         yield sim.modbus_port
 
 
+MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
+DEFAULT_URL = "modbus-tcp://127.0.0.1:502"
+
+
+def parse_modbus_url(url: str) -> tuple[str, int]:
+    """``modbus-tcp://HOST[:PORT]`` (port 502 by default; ``tcp://`` and a bare ``HOST[:PORT]`` too)."""
+    from urllib.parse import urlsplit
+
+    text = url if "://" in url else f"modbus-tcp://{url}"
+    parts = urlsplit(text)
+    if parts.scheme not in ("modbus-tcp", "modbus", "tcp") or not parts.hostname:
+        raise click.BadParameter(f"{url!r}: expected modbus-tcp://HOST[:PORT], e.g. modbus-tcp://127.0.0.1:5020",
+                                 param_hint="--url")
+    try:
+        port = parts.port or 502
+    except ValueError:
+        raise click.BadParameter(f"{url!r}: bad port", param_hint="--url") from None
+    return parts.hostname, port
+
+
 @click.command("plc-demo")
-@click.option("--host", default="127.0.0.1", show_default=True, help="Gripper (or wsg sim) address.")
-@click.option("--port", default=502, show_default=True, type=int, help="Modbus/TCP port (wsg sim --modbus-port).")
-@click.option("--cycles", default=3, show_default=True, type=int, help="Gripping cycles to run.")
-@click.option("--model", default="wsg50", show_default=True, help="Gripper model (force unit: 1/10 N on wsg70).")
-@click.option("--scan", default=2.0, show_default=True, type=float, help="PLC scan time in ms.")
-@click.option("--timeout", default=60.0, show_default=True, type=float, help="Give up after this many seconds.")
-@click.option("--fast-stop-cycle", type=int, default=None, metavar="N",
+@click.option("--url", default=None, metavar="URL",
+              help=f"The gripper's Modbus/TCP interface: modbus-tcp://HOST[:PORT] (default {DEFAULT_URL}; "
+              "`wsg sim --modbus-port 5020` prints modbus-tcp://127.0.0.1:5020).")
+@click.option("--host", default=None, hidden=True, help="Deprecated: use --url modbus-tcp://HOST:PORT.")
+@click.option("--port", default=None, type=click.IntRange(1, 65535), hidden=True,
+              help="Deprecated: use --url modbus-tcp://HOST:PORT.")
+@click.option("--cycles", default=3, show_default=True, type=click.IntRange(1), help="Gripping cycles to run.")
+@click.option("--model", default="wsg50", show_default=True, type=click.Choice(MODELS),
+              help="Gripper model (force unit: 1/10 N on wsg70).")
+@click.option("--scan", default=2.0, show_default=True, type=click.FloatRange(0, min_open=True), metavar="MS",
+              help="PLC scan time in ms.")
+@click.option("--timeout", default=60.0, show_default=True, type=click.FloatRange(0, min_open=True),
+              metavar="SECONDS", help="Give up after this many seconds (exit 1).")
+@click.option("--fast-stop-cycle", type=click.IntRange(1), default=None, metavar="N",
               help="Fault: raise FASTSTOP while the fingers move in cycle N (shows the error path).")
 @click.option("--sim", "local_sim", is_flag=True,
-              help="Run against an in-process virtual gripper instead of --host/--port.")
-@click.option("--part-width", default=22.0, show_default=True, type=float,
+              help="Run against an in-process virtual gripper instead of --url.")
+@click.option("--part-width", default=22.0, show_default=True, type=click.FloatRange(0, min_open=True),
               help="With --sim: width of the part in the fingers, mm.")
 @click.option("--no-part", is_flag=True, help="With --sim: no part, so GRIP ends in NO_PART and the cycle "
               "releases at once.")
-def plc_demo(host: str, port: int, cycles: int, model: str, scan: float, timeout: float,
-             fast_stop_cycle: int | None, local_sim: bool, part_width: float, no_part: bool) -> None:
-    """Run the fieldbus manual's gripping-cycle demo (SCL, Appendix D) over Modbus/TCP.
+@click.option("--json", "as_json", is_flag=True,
+              help='One JSON object per line: {"event": "step", "text": ...}, then {"event": "done", ...}.')
+@click.pass_context
+def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | None, cycles: int, model: str,
+             scan: float, timeout: float, fast_stop_cycle: int | None, local_sim: bool, part_width: float,
+             no_part: bool, as_json: bool) -> None:
+    """Run the fieldbus manual's gripping-cycle demo (002 Appendix D, SCL) over Modbus/TCP.
 
     Homing, pre-position to 30 mm, grip at 22 mm with 50 N, hold 1 s, release to 30 mm, back to
-    60 mm, and again; on an error STOP/ACK and homing. Start a gripper first, e.g.
-    ``wsg sim --modbus-port 5020`` then ``wsg plc-demo --port 5020``, or use ``--sim``.
+    60 mm, and again; on an error STOP/ACK and homing.
+
+    \b
+    Start a gripper first, then run the demo against its Modbus/TCP port:
+      wsg sim --modbus-port 5020
+      wsg plc-demo --url modbus-tcp://127.0.0.1:5020
+    or use --sim for an in-process virtual gripper.
+
+    Exit status: 0 all cycles done, 1 timed out, 2 usage error, 3 no connection.
     """
+    as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json
     if no_part and not local_sim:
         raise click.UsageError("--no-part needs --sim (over the bus a PLC cannot take the part away); "
                                "start wsg sim without a part instead")
+    if host is not None or port is not None:
+        if url is not None:
+            raise click.UsageError("give --url, or the deprecated --host/--port, not both")
+        click.echo("warning: --host/--port are deprecated; use --url modbus-tcp://HOST:PORT", err=True)
+        url = f"modbus-tcp://{host or '127.0.0.1'}:{port or 502}"
+    target_host, target_port = parse_modbus_url(url or DEFAULT_URL)
+
+    def echo(text: str) -> None:
+        click.echo(json.dumps({"event": "step", "text": text}, ensure_ascii=False) if as_json else text)
 
     async def main() -> DemoResult:
         if local_sim:
             async with _local_sim(model, None if no_part else part_width) as sim_port:
-                click.echo(f"in-process virtual {model} with Modbus/TCP on 127.0.0.1:{sim_port}")
+                if as_json:
+                    click.echo(json.dumps({"event": "started", "url": f"modbus-tcp://127.0.0.1:{sim_port}"}))
+                else:
+                    click.echo(f"in-process virtual {model} with Modbus/TCP on 127.0.0.1:{sim_port}")
                 return await run_demo("127.0.0.1", sim_port, cycles, scan=scan / 1000, timeout=timeout,
-                                      fast_stop_cycle=fast_stop_cycle, model=model, echo=click.echo)
-        return await run_demo(host, port, cycles, scan=scan / 1000, timeout=timeout,
-                              fast_stop_cycle=fast_stop_cycle, model=model, echo=click.echo)
+                                      fast_stop_cycle=fast_stop_cycle, model=model, echo=echo)
+        return await run_demo(target_host, target_port, cycles, scan=scan / 1000, timeout=timeout,
+                              fast_stop_cycle=fast_stop_cycle, model=model, echo=echo)
 
     try:
         result = asyncio.run(main())
-    except ConnectionError as exc:
-        raise click.ClickException(f"{exc} (is the gripper or `wsg sim --modbus-port N` running?)") from exc
+    except (ConnectionError, OSError) as exc:
+        where = "the in-process virtual gripper" if local_sim else f"modbus-tcp://{target_host}:{target_port}"
+        message = f"no Modbus/TCP connection to {where}: {exc}"
+        if as_json:
+            click.echo(json.dumps({"event": "error", "ok": False, "error": message}))
+        click.echo(f"error: {message} (is the gripper, or `wsg sim --modbus-port N`, running?)", err=True)
+        sys.exit(EXIT_CONNECTION)
+    if as_json:
+        click.echo(json.dumps({"event": "done", "ok": result.completed, **dataclasses.asdict(result)}))
     sys.exit(0 if result.completed else 1)

@@ -107,32 +107,117 @@ def emit(value: Any, as_json: bool, key: str = "value") -> None:
 
 # -- errors ------------------------------------------------------------------------------------
 
-def fail(exc: BaseException, as_json: bool = False) -> NoReturn:
-    """Report ``exc`` on stderr (JSON on stdout too with --json) and exit with its status."""
-    code = EXIT_CONNECTION
-    info: dict[str, Any] = {"ok": False, "error": str(exc)}
+#: The driver's hints name Python calls; on the command line the same advice names `wsg` commands.
+CLI_HINTS: dict[str, str] = {
+    "call acknowledge() first": "run `wsg ack` first",
+    "call home() first": "run `wsg home` first",
+    "stop() it": "`wsg stop` it",
+}
+
+HELD_BY_ANOTHER = ("another client holds this gripper's TCP command interface (one client at a time; see "
+                   "docs/sim.md): close that program (or its `wsg monitor`), or use the UDP interface")
+
+
+def cli_hint(text: str) -> str:
+    """``text`` with the driver's Python hints replaced by the `wsg` commands that do the same."""
+    for python, cli in CLI_HINTS.items():
+        text = text.replace(python, cli)
+    return text
+
+
+def _label(command_id: int | None) -> str:
+    from ..protocol import CATALOG
+
+    if command_id is None:
+        return ""
+    spec = CATALOG.get(command_id)
+    return spec.label if spec else f"command {command_id:02X}h"
+
+
+def describe(exc: BaseException, url: str = "") -> tuple[int, str, dict[str, Any]]:
+    """Exit code, one-line message and JSON fields for ``exc`` as the CLI reports it.
+
+    Device answers read ``NAME (code): meaning``; failures found on this side (no reply in time, the
+    connection dropped or was refused, a corrupted reply) say what happened, not a status code.
+    """
+    info: dict[str, Any] = {"ok": False}
     if isinstance(exc, StatusError):
         status = exc.status
         name = status.name if isinstance(status, Status) else f"UNKNOWN_STATUS_{int(status)}"
-        meaning = status.description if isinstance(status, Status) else "unknown status code"
         from_device = getattr(exc, "from_device", True)
-        code = EXIT_STATUS if from_device else EXIT_CONNECTION
-        info.update(status=name, status_code=int(status), meaning=meaning, from_device=from_device,
-                    command_id=exc.command_id)
+        label = _label(exc.command_id)
+        prefix = f"{label}: " if label else ""
+        if not from_device:
+            detail = exc.detail or str(exc)
+            if status == Status.E_TIMEOUT:
+                kind = "timeout"
+                detail += " (local timeout)" if "local" not in detail else ""
+            elif status == Status.E_IO_ERROR:
+                kind = "connection"
+            else:
+                kind = "protocol"
+            message = prefix + detail
+            info.update(error=message, local=kind, command_id=exc.command_id)
+            return EXIT_CONNECTION, message, info
+        meaning = status.description if isinstance(status, Status) else "unknown status code"
         flags = getattr(exc, "flags", None)
-        if flags is not None:
-            info["flags"] = jsonable(flags)
-        message = str(exc)
+        message = cli_hint(str(exc))
         if name not in message:
             message = f"{name} ({int(status)}): {meaning} - {message}"
-    else:
-        message = str(exc) or type(exc).__name__
-        if isinstance(exc, ValueError | TypeError):  # the driver refused an argument before sending
-            code = EXIT_USAGE
+        if (status == Status.E_ACCESS_DENIED and flags is None and url.startswith("tcp:")
+                and "FAST STOP" not in message):
+            # a refused session cannot even read the system flags: every command gets E_ACCESS_DENIED
+            message += f" - {HELD_BY_ANOTHER}"
+        info.update(error=message, status=name, status_code=int(status), meaning=meaning, from_device=True,
+                    command_id=exc.command_id)
+        if flags is not None:
+            info["flags"] = jsonable(flags)
+        return EXIT_STATUS, message, info
+    message = str(exc) or type(exc).__name__
+    info["error"] = message
+    if isinstance(exc, ValueError | TypeError):  # the driver refused an argument before sending
+        return EXIT_USAGE, message, info
+    if isinstance(exc, OSError):
+        info["local"] = "connection"
+    return EXIT_CONNECTION, message, info
+
+
+def fail(exc: BaseException, as_json: bool = False, url: str = "") -> NoReturn:
+    """Report ``exc`` on stderr (JSON on stdout too with --json) and exit with its status."""
+    code, message, info = describe(exc, url)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
     click.echo(f"error: {message}", err=True)
     sys.exit(code)
+
+
+# -- ports -------------------------------------------------------------------------------------
+
+class PortType(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
+    """A listening port: 1..65535, ``0`` for any free port (the OS picks; the banner prints it), or
+    ``off``. One meaning in every command (``wsg sim``, ``wsg demo``), as in the Python API."""
+
+    name = "port"
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:  # click 8.1 / 8.2
+        return "PORT|0|off"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int | None:
+        if value is None or isinstance(value, int):
+            return value
+        text = str(value).strip().lower()
+        if text in ("off", "none", "no"):
+            return None
+        try:
+            port = int(text, 10)
+        except ValueError:
+            self.fail(f"{value!r} is not a port: give 1..65535, 0 for any free port, or off", param, ctx)
+        if not 0 <= port <= 65535:
+            self.fail(f"{port} is not in 0..65535 (0: any free port; off: no interface)", param, ctx)
+        return port
+
+
+PORT = PortType()
 
 
 # -- common options ----------------------------------------------------------------------------
@@ -150,7 +235,7 @@ class Options:
 def common_options(f: F) -> F:
     """``--json``, ``--log``, ``--log-file``, ``--timeout`` (in that order in --help)."""
     f = click.option("--timeout", type=click.FloatRange(min=0.01), default=5.0, show_default=True, metavar="SECONDS",
-                     help="How long to wait for the gripper's reply (motions: --motion-timeout).")(f)
+                     help="Seconds to wait for each reply from the gripper.")(f)
     f = click.option("--log-file", type=click.Path(dir_okay=False, writable=True), metavar="PATH",
                      help="Append the communication log as JSON lines to PATH (read it with `wsg log PATH`).")(f)
     f = click.option("--log", "log_flag", is_flag=True,

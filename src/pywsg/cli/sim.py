@@ -3,18 +3,17 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
+import re
 from pathlib import Path
 from typing import Any
 
 import click
 
+from .runner import PORT
+
 MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
-
-
-def _port(value: int) -> int | None:
-    """CLI ports: 0 turns the interface off."""
-    return None if value == 0 else value
 
 
 def _serial(value: str) -> str | None:
@@ -34,50 +33,78 @@ def _run(coro: Any, use_uvloop: bool | None) -> Any:
     return asyncio.run(coro)
 
 
+_BANNER = re.compile(r"gripper (\d+): (\S+)\s+(\S+)(.*)")
+
+
+def _json_line(line: str) -> str:
+    """A banner line (``gripper 0: TCP      tcp://127.0.0.1:1000``) as one JSON object."""
+    m = _BANNER.fullmatch(line)
+    if m is None:
+        return json.dumps({"event": line})
+    data = {"event": "interface", "gripper": int(m[1]), "kind": m[2].lower(), "url": m[3]}
+    if m[4].strip():
+        data["note"] = m[4].strip(" ()")
+    return json.dumps(data)
+
+
 @click.command("sim")
 @click.option("--model", type=click.Choice(MODELS), default="wsg50", show_default=True, help="Device profile.")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind (0.0.0.0: all).")
-@click.option("--tcp-port", type=click.IntRange(0, 65535), default=1000, show_default=True,
-              help="TCP command interface (0: off).")
-@click.option("--udp-port", type=click.IntRange(0, 65535), default=1500, show_default=True,
-              help="UDP command interface, local port (0: off).")
+@click.option("--tcp-port", type=PORT, default="1000", show_default=True,
+              help="TCP command interface (0: any free port, off: none).")
+@click.option("--udp-port", type=PORT, default="1500", show_default=True,
+              help="UDP command interface, local port (0: any free port, off: none).")
 @click.option("--udp-reply-port", type=click.IntRange(0, 65535), default=1501, show_default=True,
-              help="UDP replies go to the client's address on this port (0: the client's own port).")
+              help="UDP replies go to the client's address on this port (0: back to the client's own port, "
+              "as in a URL's reply_port=0).")
 @click.option("--serial", "serial_port", default="pty", show_default=True, metavar="pty|PATH|off",
               help="Serial interface: a new pseudo-terminal, an existing serial device, or off.")
 @click.option("--baudrate", type=int, default=115200, show_default=True, help="Baud rate for a serial PATH.")
 @click.option("--can", "can_channel", default=None, metavar="CHANNEL",
               help="CAN interface on this python-can channel (inferred mapping, see docs/sim.md).")
 @click.option("--can-interface", default="virtual", show_default=True, help="python-can interface.")
-@click.option("--modbus-port", type=click.IntRange(0, 65535), default=0, show_default=True,
-              help="Modbus/TCP fieldbus interface (0: off; the standard 502 needs root).")
-@click.option("--web-port", type=click.IntRange(0, 65535), default=8080, show_default=True,
-              help="Web interface (0: off).")
+@click.option("--modbus-port", type=PORT, default="off", show_default=True,
+              help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
+@click.option("--web-port", type=PORT, default="8080", show_default=True,
+              help="Web interface (0: any free port, off: none).")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
+@click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
+              help="Start with a part of WIDTH mm between the fingers (wsg world: change it later).")
+@click.option("--block", "block_width", type=float, default=None, metavar="WIDTH",
+              help="Start with a rigid obstacle in the fingers' way at WIDTH mm.")
+@click.option("--scenario", "scenario_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="Run a scenario (TOML timeline of world events, see docs/testing.md).")
 @click.option("-v", "--verbose", count=True, help="Log every command (-v) and more (-vv).")
+@click.option("--json", "as_json", is_flag=True,
+              help='One JSON object per line: {"event": "interface", "gripper": 0, "kind": "tcp", "url": ...}, '
+              'then {"event": "stopping"}.')
 @click.pass_context
 def sim(
     ctx: click.Context,
     model: str,
     host: str,
-    tcp_port: int,
-    udp_port: int,
+    tcp_port: int | None,
+    udp_port: int | None,
     udp_reply_port: int,
     serial_port: str,
     baudrate: int,
     can_channel: str | None,
     can_interface: str,
-    modbus_port: int,
-    web_port: int,
+    modbus_port: int | None,
+    web_port: int | None,
     settings_file: Path | None,
     count: int,
     use_uvloop: bool | None,
+    part_width: float | None,
+    block_width: float | None,
+    scenario_file: Path | None,
     verbose: int,
+    as_json: bool,
 ) -> None:
     """Run virtual grippers that any WSG client can connect to.
 
@@ -92,7 +119,7 @@ def sim(
         logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
         logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
 
-    web = _port(web_port)
+    web = web_port
     if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
         import importlib.util
 
@@ -107,24 +134,44 @@ def sim(
     options = SimOptions(
         model=model,
         host=host,
-        tcp_port=_port(tcp_port),
-        udp_port=_port(udp_port),
-        udp_reply_port=_port(udp_reply_port),
+        tcp_port=tcp_port,
+        udp_port=udp_port,
+        udp_reply_port=udp_reply_port or None,
         serial=_serial(serial_port),
         baudrate=baudrate,
         can_channel=can_channel,
         can_interface=can_interface,
-        modbus_port=_port(modbus_port),
+        modbus_port=modbus_port,
         web_port=web,
         settings=settings_file,
         count=count,
     )
 
+    as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json
+
     def echo(line: str) -> None:
-        click.echo(line)
+        click.echo(_json_line(line) if as_json else line)
+
+    from ..testing.scenario import Scenario, ScenarioError
+    from ..testing.world import WorldError
 
     try:
-        _run(run_sim(options, echo=echo), use_uvloop)
+        scenario = Scenario.load(scenario_file) if scenario_file else None
+    except ScenarioError as exc:
+        raise click.BadParameter(str(exc), param_hint="--scenario") from None
+
+    def on_start(server: Any) -> None:
+        from ..testing.host import setup_world
+
+        def said(i: int, t: float, text: str) -> None:
+            click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
+
+        setup_world(server, part=part_width, block=block_width, scenario=scenario, on_action=said)
+
+    try:
+        _run(run_sim(options, echo=echo, on_start=on_start), use_uvloop)
+    except WorldError as exc:
+        raise click.BadParameter(str(exc), param_hint="--part/--block") from None
     except SimError as exc:
         raise click.ClickException(str(exc)) from None
     except KeyboardInterrupt:  # signal handlers cover the loop; this covers start-up

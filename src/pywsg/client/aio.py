@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import asyncio
 import builtins
-import collections
 import logging
 import time
 from collections.abc import AsyncIterator, Callable
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -16,255 +14,46 @@ from ..errors import ConnectionLostError, TimeoutError, WsgError
 from ..protocol import (
     ChecksumMismatch,
     Command,
-    FingerFlag,
     Frame,
     FrameParser,
     GarbageSkipped,
-    GripperState,
-    HomingDirection,
     ParseError,
     Status,
     SystemFlag,
     parse_datagram,
 )
 from . import calls
+from .aio_commands import AsyncCommands, AsyncFinger
+from .aio_handles import AsyncMotion, AsyncStream, AWaiter
 from .aio_transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
 from .calls import Call
 from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
+    ReconnectPolicy,
     bad_checksum,
     decode_success,
     frame_from,
     is_success,
     needs_flags,
     raise_for,
-    sample_of,
     status_of,
     stream_id,
 )
-from .demux import Demux, Sink, Waiter
-from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
+from .demux import Demux
+from .types import Reply, Sample, State
 from .url import Endpoint, parse_url
+
+__all__ = ["AsyncFinger", "AsyncGripper", "AsyncMotion", "AsyncStream", "ReconnectPolicy"]
 
 log = logging.getLogger("pywsg.client")
 T = TypeVar("T")
 
-
-@dataclass
-class ReconnectPolicy:
-    """Opt-in automatic reconnection: ``attempts`` tries, ``delay`` s apart (doubling up to ``max_delay``)."""
-
-    attempts: int = 10
-    delay: float = 0.2
-    max_delay: float = 5.0
-
-
-class _AWaiter(Waiter):
-    """A waiter with a future; ``deadline`` (loop time) is watched by the gripper's one timer."""
-
-    __slots__ = ("deadline", "fut", "timeout")
-
-    def __init__(self, command_id: int, loop: asyncio.AbstractEventLoop, final: Waiter | None = None) -> None:
-        # Waiter.__init__ inlined: this runs for every request
-        self.command_id = command_id
-        self.frame = None
-        self.error = None
-        self.done = False
-        self.ghost_until = 0.0
-        self.final = final
-        self.deadline = 0.0
-        self.timeout = 0.0
-        self.fut: asyncio.Future[None] = loop.create_future()
-
-    def _wake(self) -> None:
-        if not self.fut.done():
-            self.fut.set_result(None)
-
-
 _COMPACT_AT = 256  # timed waiters kept before the finished ones are swept out
 
 
-class AsyncMotion:
-    """A running motion (``wait=False``): ``await motion`` or ``await motion.wait(timeout)``.
-
-    ``wait()`` returns None when the motion ended with E_SUCCESS and raises the matching
-    :class:`~pywsg.errors.WsgError` otherwise (e.g. ``AbortedError`` after ``stop()``).
-    """
-
-    def __init__(self, gripper: AsyncGripper, call: Call[Any], final: _AWaiter | None,
-                 frame: Frame | None = None) -> None:
-        self._gripper = gripper
-        self._call = call
-        self._final = final
-        self._frame = frame  # set when the motion is already over
-        self._error: BaseException | None = None
-        self._checked = False
-        self.command = Command(call.command_id)
-        self.started = time.monotonic()
-
-    def done(self) -> bool:
-        """True once the final frame arrived (or the connection failed)."""
-        return self._frame is not None or (self._final is not None and self._final.done)
-
-    @property
-    def status(self) -> Status | int | None:
-        """The final status, or None while the motion runs."""
-        if self._final is not None and self._final.frame is not None:
-            return status_of(self._final.frame)
-        return status_of(self._frame) if self._frame is not None else None
-
-    async def wait(self, timeout: float | None = None) -> None:
-        """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
-        if not self._checked:
-            await self._settle(self._gripper.motion_timeout if timeout is None else timeout)
-        if self._error is not None:
-            raise self._error
-
-    async def _settle(self, timeout: float) -> None:
-        w = self._final
-        if self._frame is None and w is not None:
-            if not w.done:
-                try:
-                    await asyncio.wait_for(asyncio.shield(w.fut), timeout)
-                except builtins.TimeoutError:
-                    raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
-                                       f"motion not finished within {timeout:g} s", from_device=False) from None
-            if w.error is not None:
-                self._error = w.error
-                self._checked = True
-                return
-            self._frame = w.frame
-        assert self._frame is not None
-        if status_of(self._frame) != Status.E_SUCCESS:
-            flags = await self._gripper._flags_quietly()
-            self._error = raise_for(self._call, self._frame, flags)
-        self._checked = True
-
-    def __await__(self) -> Any:
-        return self.wait().__await__()
-
-    def __repr__(self) -> str:
-        return f"<AsyncMotion {self.command.name} {'done' if self.done() else 'running'}>"
-
-
-class AsyncStream(Sink):
-    """Auto-update samples as an async iterator: ``async for sample in stream``.
-
-    Keeps up to ``maxlen`` samples not yet consumed (older ones are counted in ``dropped``).
-    ``await stream.close()`` (or ``async with``) ends the subscription.
-    """
-
-    def __init__(self, gripper: AsyncGripper, command: Command, maxlen: int = 10000) -> None:
-        self._gripper = gripper
-        self.command = command
-        self._q: collections.deque[Sample] = collections.deque()
-        self._maxlen = maxlen
-        self._waiter: asyncio.Future[None] | None = None
-        self._end: BaseException | None = None
-        self._ended = False
-        self._closed = False
-        self.received = 0
-        self.dropped = 0
-        self.callbacks: list[Callable[[Sample], None]] = []
-
-    def push(self, frame: Frame) -> None:
-        s = sample_of(frame, time.monotonic())
-        if s is None:
-            return
-        self.received += 1
-        for cb in self.callbacks:
-            cb(s)
-        if len(self._q) >= self._maxlen:
-            self._q.popleft()
-            self.dropped += 1
-        self._q.append(s)
-        w = self._waiter
-        if w is not None and not w.done():
-            w.set_result(None)
-
-    def revive(self) -> None:
-        if not self._closed:
-            self._ended = False
-            self._end = None
-
-    def end(self, exc: BaseException | None) -> None:
-        self._ended = True
-        self._end = exc
-        w = self._waiter
-        if w is not None and not w.done():
-            w.set_result(None)
-
-    def __aiter__(self) -> AsyncStream:
-        return self
-
-    async def __anext__(self) -> Sample:
-        while not self._q:
-            if self._ended:
-                if self._end is not None:
-                    raise self._end
-                raise StopAsyncIteration
-            self._waiter = asyncio.get_running_loop().create_future()
-            try:
-                await self._waiter
-            finally:
-                self._waiter = None
-        return self._q.popleft()
-
-    async def get(self, timeout: float | None = None) -> Sample:
-        """The next sample (waits at most ``timeout`` s; TimeoutError after that)."""
-        try:
-            return await asyncio.wait_for(self.__anext__(), timeout)
-        except builtins.TimeoutError:
-            raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
-                               from_device=False) from None
-
-    def drain(self) -> list[Sample]:
-        """All samples received and not yet consumed."""
-        out = list(self._q)
-        self._q.clear()
-        return out
-
-    async def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            self.end(None)
-            await self._gripper._unsubscribe(self)
-
-    async def __aenter__(self) -> AsyncStream:
-        return self
-
-    async def __aexit__(self, *exc: object) -> None:
-        await self.close()
-
-
-class AsyncFinger:
-    """Finger 1 or 2: ``await g.finger(1).info()``."""
-
-    def __init__(self, gripper: AsyncGripper, n: int) -> None:
-        calls.finger_info(n)  # validates n
-        self._g = gripper
-        self.n = n
-
-    async def info(self) -> FingerInfo:
-        """60h/70h: finger type and data frame size (bytes)."""
-        return await self._g._run(calls.finger_info(self.n))
-
-    async def flags(self) -> FingerFlag:
-        """61h/71h: finger state flags."""
-        return await self._g._run(calls.finger_flags(self.n))
-
-    async def power(self, on: bool = True, *, timeout: float | None = None) -> None:
-        """62h/72h: switch the finger's power (switching on takes ~500 ms: waits for it)."""
-        await self._g._run_motion(calls.finger_power(self.n, on), True, timeout)
-
-    async def data(self) -> bytes:
-        """63h/73h: the finger's current data frame (layout depends on the finger)."""
-        return await self._g._run(calls.finger_data(self.n))
-
-
-class AsyncGripper:
+class AsyncGripper(AsyncCommands):
     """asyncio driver for a WSG gripper. Open with ``await AsyncGripper.open(url)`` or
     ``async with AsyncGripper(url) as g``.
 
@@ -294,7 +83,7 @@ class AsyncGripper:
         self._reconnect_task: asyncio.Task[None] | None = None
         # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
         # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
-        self._timed: list[_AWaiter] = []
+        self._timed: list[AWaiter] = []
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = 0.0
         self._compact_at = _COMPACT_AT
@@ -343,6 +132,10 @@ class AsyncGripper:
             elif ep.scheme == "udp":
                 self._transport = await UdpTransport.connect(ep, self._on_datagram, self._on_lost,
                                                              self.connect_timeout)
+            elif ep.scheme == "can":
+                from .can_transport import CanTransport
+
+                self._transport = await CanTransport.connect(ep, self._on_data, self._on_lost, self.connect_timeout)
             else:
                 self._transport = await SerialTransport.connect(ep, self._on_data, self._on_lost,
                                                                 self.connect_timeout)
@@ -503,14 +296,14 @@ class AsyncGripper:
             except (builtins.TimeoutError, asyncio.CancelledError):
                 pass
 
-    def _send(self, call: Call[Any], timeout: float | None) -> tuple[_AWaiter, _AWaiter | None]:
+    def _send(self, call: Call[Any], timeout: float | None) -> tuple[AWaiter, AWaiter | None]:
         """Send one request; return the waiter of its first reply (timed) and that of a pending final."""
         t = self._transport_or_raise(call.command_id)
         loop = self._loop
         assert loop is not None
         cid = call.command_id
-        final = _AWaiter(cid, loop) if call.pending else None
-        w = _AWaiter(cid, loop, final)
+        final = AWaiter(cid, loop) if call.pending else None
+        w = AWaiter(cid, loop, final)
         self._demux.expect(w)
         wire = call.wire
         if call.auto_read and self._subs:
@@ -532,7 +325,7 @@ class AsyncGripper:
         t.write(wire)
         return w, final
 
-    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, _AWaiter | None]:
+    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, AWaiter | None]:
         """Send one request; return its first reply and the waiter of a pending final."""
         if self._transport is None:
             await self._await_reconnect()
@@ -545,7 +338,7 @@ class AsyncGripper:
         return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     # -- timeouts
-    def _time(self, w: _AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
+    def _time(self, w: AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
         """Fail ``w`` with TimeoutError if it is not done ``timeout`` s from now."""
         # time.monotonic() is the loop's clock (asyncio's and uvloop's), without a method call
         w.deadline = d = time.monotonic() + timeout
@@ -574,7 +367,7 @@ class AsyncGripper:
         loop = self._loop
         assert loop is not None
         now = time.monotonic()
-        keep: list[_AWaiter] = []
+        keep: list[AWaiter] = []
         for w in self._timed:
             if w.done:
                 continue
@@ -586,7 +379,7 @@ class AsyncGripper:
         if keep:
             self._arm(loop, min(w.deadline for w in keep))
 
-    async def _reply(self, w: _AWaiter) -> Frame:
+    async def _reply(self, w: AWaiter) -> Frame:
         try:
             await w.fut
         except asyncio.CancelledError:
@@ -596,13 +389,13 @@ class AsyncGripper:
             raise w.error
         return w.frame  # type: ignore[return-value]  # set when done without error
 
-    async def _wait(self, w: _AWaiter, timeout: float) -> Frame:
+    async def _wait(self, w: AWaiter, timeout: float) -> Frame:
         loop = self._loop
         assert loop is not None
         self._time(w, loop, timeout)
         return await self._reply(w)
 
-    def _expire(self, w: _AWaiter, timeout: float) -> None:
+    def _expire(self, w: AWaiter, timeout: float) -> None:
         if not w.done:
             w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s",
                                 from_device=False))
@@ -684,140 +477,12 @@ class AsyncGripper:
             raise raise_for(call, frame, None)
         return Reply(frame.command_id, st, frame.params)
 
-    # ------------------------------------------------------------------ connection commands
-    async def loop(self, data: bytes = b"pywsg") -> bytes:
-        """06h Loop: the gripper returns ``data`` (at most 256 bytes)."""
-        return await self._run(calls.loop(data))
-
-    # ------------------------------------------------------------------ motion
-    async def home(self, direction: HomingDirection | int | str | None = None, *, wait: bool = True,
-                   timeout: float | None = None) -> AsyncMotion:
-        """20h Homing: reference the fingers (direction None/0: default, 1 positive, 2 negative)."""
-        return await self._run_motion(calls.homing(direction), wait, timeout)
-
-    async def move(self, width: float, speed: float, relative: bool = False, stop_on_block: bool = False, *,
-                   wait: bool = True, timeout: float | None = None) -> AsyncMotion:
-        """21h Pre-position: move to ``width`` mm (or by it, ``relative``) at ``speed`` mm/s."""
-        return await self._run_motion(calls.preposition(width, speed, relative, stop_on_block), wait, timeout)
-
-    async def grip(self, width: float, speed: float, force: float | None = None, *, wait: bool = True,
-                   timeout: float | None = None) -> AsyncMotion:
-        """25h Grip Part of nominal ``width`` mm at ``speed`` mm/s; ``force`` N sets the force limit first.
-        Raises NoPartError when no part is found within the clamping travel."""
-        if force is not None:
-            await self.set_force_limit(force)
-        return await self._run_motion(calls.grip(width, speed), wait, timeout)
-
-    async def release(self, width: float, speed: float, *, wait: bool = True,
-                      timeout: float | None = None) -> AsyncMotion:
-        """26h Release Part: open to ``width`` mm at ``speed`` mm/s."""
-        return await self._run_motion(calls.release(width, speed), wait, timeout)
-
-    async def stop(self) -> None:
-        """22h Stop: end any motion (that motion ends with AbortedError)."""
-        await self._run(calls.stop())
-
-    async def fast_stop(self) -> None:
-        """23h FAST STOP: motion commands are refused until ``acknowledge()``."""
-        await self._run(calls.fast_stop())
-
-    async def acknowledge(self) -> None:
-        """24h Acknowledge FAST STOP (sends the key "ack")."""
-        await self._run(calls.acknowledge())
-
-    # ------------------------------------------------------------------ motion configuration
-    async def set_acceleration(self, acceleration: float) -> None:
-        """30h: acceleration in mm/s² (clamped by the gripper to its limits)."""
-        await self._run(calls.set_acceleration(acceleration))
-
-    async def acceleration(self) -> float:
-        """31h: the set acceleration, mm/s²."""
-        return await self._run(calls.acceleration())
-
-    async def set_force_limit(self, force: float) -> None:
-        """32h: gripping force limit in N (clamped to the nominal or overdrive force)."""
-        await self._run(calls.set_force_limit(force))
-
-    async def force_limit(self) -> float:
-        """33h: the force limit, N."""
-        return await self._run(calls.force_limit())
-
-    async def set_soft_limits(self, minus: float, plus: float) -> None:
-        """34h: soft limits in mm (a motion beyond them: RangeError)."""
-        await self._run(calls.set_soft_limits(minus, plus))
-
-    async def soft_limits(self) -> SoftLimits | None:
-        """35h: the soft limits in mm, or None when none are set."""
-        return await self._run(calls.soft_limits())
-
-    async def clear_soft_limits(self) -> None:
-        """36h: clear the soft limits."""
-        await self._run(calls.clear_soft_limits())
-
-    async def overdrive(self, enable: bool = True) -> None:
-        """37h: enable (or disable) force overdrive mode."""
-        await self._run(calls.overdrive(enable))
-
-    async def tare(self) -> None:
-        """38h: zero the force sensor (not while HOLDING: AccessDeniedError)."""
-        await self._run(calls.tare())
-
-    # ------------------------------------------------------------------ state
-    async def system_state(self) -> SystemFlag:
-        """40h: the system state flags."""
-        return await self._run(calls.system_state())
-
-    async def gripper_state(self) -> GripperState | int:
-        """41h: the grasping state (IDLE, HOLDING, NO_PART, ...)."""
-        return await self._run(calls.gripper_state())
-
-    async def statistics(self, reset: bool = False) -> Statistics:
-        """42h: grips total / no part / part lost (``reset`` clears them after reading)."""
-        return await self._run(calls.statistics(reset))
-
-    async def width(self) -> float:
-        """43h: opening width, mm."""
-        return await self._run(calls.width())
-
-    async def speed(self) -> float:
-        """44h: finger speed, mm/s."""
-        return await self._run(calls.speed())
-
-    async def force(self) -> float:
-        """45h: gripping force, N."""
-        return await self._run(calls.force())
-
-    async def temperature(self) -> float:
-        """46h: device temperature, °C."""
-        return await self._run(calls.temperature())
-
     async def state(self) -> State:
         """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
         w, s, f, gs, fl, te = await asyncio.gather(
             self.width(), self.speed(), self.force(), self.gripper_state(), self.system_state(),
             self.temperature())
         return State(w, s, f, gs, fl, te)
-
-    # ------------------------------------------------------------------ system
-    async def info(self) -> SystemInfo:
-        """50h: device type, hardware revision, firmware version, serial number."""
-        return await self._run(calls.info())
-
-    async def set_tag(self, tag: str) -> None:
-        """51h: set the device tag (at most 64 printable ASCII characters)."""
-        await self._run(calls.set_tag(tag))
-
-    async def tag(self) -> str | None:
-        """52h: the device tag, or None when none is set."""
-        return await self._run(calls.tag())
-
-    async def limits(self) -> Limits:
-        """53h: stroke (mm), speed (mm/s), acceleration (mm/s²) and force (N) limits."""
-        return await self._run(calls.limits())
-
-    def finger(self, n: int) -> AsyncFinger:
-        """Finger 1 or 2 (60h..63h, 70h..73h)."""
-        return AsyncFinger(self, n)
 
     # ------------------------------------------------------------------ streams
     async def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False,

@@ -8,12 +8,11 @@ callbacks run on their own thread, so a callback may call the gripper (e.g. ``st
 
 from __future__ import annotations
 
-import collections
 import logging
 import queue
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -21,38 +20,38 @@ from ..errors import ConnectionLostError, TimeoutError, WsgError
 from ..protocol import (
     ChecksumMismatch,
     Command,
-    FingerFlag,
     Frame,
     FrameParser,
     GarbageSkipped,
-    GripperState,
-    HomingDirection,
     ParseError,
     Status,
     SystemFlag,
     parse_datagram,
 )
 from . import calls
-from .aio import ReconnectPolicy
 from .calls import Call
 from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
+    ReconnectPolicy,
     bad_checksum,
     decode_success,
     frame_from,
     is_success,
     needs_flags,
     raise_for,
-    sample_of,
     status_of,
     stream_id,
 )
-from .demux import Demux, Sink, Waiter
+from .demux import Demux, Waiter
+from .sync_commands import Commands, Finger
+from .sync_handles import Motion, Stream
 from .sync_transport import SyncTransport, open_sync
-from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
+from .types import Reply, Sample, State
 from .url import Endpoint, parse_url
+
+__all__ = ["Finger", "Gripper", "Motion", "ReconnectPolicy", "Stream"]
 
 log = logging.getLogger("pywsg.client")
 T = TypeVar("T")
@@ -61,173 +60,7 @@ _DEBUG = logging.DEBUG
 _PUMP_SLICE = 0.05  # s the background reader blocks at a time (how fast it notices close())
 
 
-class Motion:
-    """A running motion (``wait=False``): ``motion.wait(timeout)`` returns None on success and raises
-    the matching :class:`~pywsg.errors.WsgError` otherwise."""
-
-    def __init__(self, gripper: Gripper, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
-        self._gripper = gripper
-        self._call = call
-        self._final = final
-        self._frame = frame
-        self._error: BaseException | None = None
-        self._checked = False
-        self.command = Command(call.command_id)
-        self.started = time.monotonic()
-
-    def done(self) -> bool:
-        """True once the final frame arrived (or the connection failed)."""
-        return self._frame is not None or (self._final is not None and self._final.done)
-
-    @property
-    def status(self) -> Status | int | None:
-        if self._final is not None and self._final.frame is not None:
-            return status_of(self._final.frame)
-        return status_of(self._frame) if self._frame is not None else None
-
-    def wait(self, timeout: float | None = None) -> None:
-        """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
-        if not self._checked:
-            self._settle(self._gripper.motion_timeout if timeout is None else timeout)
-        if self._error is not None:
-            raise self._error
-
-    def _settle(self, timeout: float) -> None:
-        w = self._final
-        if self._frame is None and w is not None:
-            if not w.done:
-                self._gripper._wait_for(w, timeout, abandon=False)
-            if not w.done:
-                raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
-                                   f"motion not finished within {timeout:g} s", from_device=False)
-            if w.error is not None:
-                self._error = w.error
-                self._checked = True
-                return
-            self._frame = w.frame
-        assert self._frame is not None
-        if status_of(self._frame) != Status.E_SUCCESS:
-            self._error = raise_for(self._call, self._frame, self._gripper._flags_quietly())
-        self._checked = True
-
-    def __repr__(self) -> str:
-        return f"<Motion {self.command.name} {'done' if self.done() else 'running'}>"
-
-
-_END = object()
-
-
-class Stream(Sink):
-    """Auto-update samples: iterate (``for s in stream``, blocks), ``get(timeout)``, ``drain()``, or
-    register ``callback``\\s. Keeps up to ``maxlen`` unread samples (older ones counted in ``dropped``)."""
-
-    def __init__(self, gripper: Gripper, command: Command, maxlen: int = 10000,
-                 callback: Callable[[Sample], None] | None = None) -> None:
-        self._gripper = gripper
-        self.command = command
-        self._q: collections.deque[Sample] = collections.deque()
-        self._cv = threading.Condition(threading.Lock())
-        self._maxlen = maxlen
-        self._ended = False
-        self._closed = False
-        self._end: BaseException | None = None
-        self.received = 0
-        self.dropped = 0
-        self.callbacks: list[Callable[[Sample], None]] = [callback] if callback else []
-
-    def push(self, frame: Frame) -> None:  # called on the reading thread, under the gripper's lock
-        s = sample_of(frame, time.monotonic())
-        if s is None:
-            return
-        with self._cv:
-            self.received += 1
-            if len(self._q) >= self._maxlen:
-                self._q.popleft()
-                self.dropped += 1
-            self._q.append(s)
-            self._cv.notify_all()
-        if self.callbacks:
-            self._gripper._callback(self, s)
-
-    def revive(self) -> None:
-        with self._cv:
-            if not self._closed:
-                self._ended = False
-                self._end = None
-
-    def end(self, exc: BaseException | None) -> None:
-        with self._cv:
-            self._ended = True
-            self._end = exc
-            self._cv.notify_all()
-
-    def get(self, timeout: float | None = None) -> Sample:
-        """The next sample; TimeoutError after ``timeout`` s; StopIteration-free: raises the end reason
-        (ConnectionLostError) or ``EOFError`` when the stream was closed."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        with self._cv:
-            while not self._q:
-                if self._ended:
-                    raise self._end if self._end is not None else EOFError("stream closed")
-                remaining = None if deadline is None else deadline - time.monotonic()
-                if remaining is not None and remaining <= 0:
-                    raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
-                                       from_device=False)
-                self._cv.wait(remaining)
-            return self._q.popleft()
-
-    def __iter__(self) -> Iterator[Sample]:
-        while True:
-            try:
-                yield self.get()
-            except EOFError:
-                return
-
-    def drain(self) -> list[Sample]:
-        with self._cv:
-            out = list(self._q)
-            self._q.clear()
-        return out
-
-    def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            self.end(None)
-            self._gripper._unsubscribe(self)
-
-    def __enter__(self) -> Stream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class Finger:
-    """Finger 1 or 2: ``g.finger(1).info()``."""
-
-    def __init__(self, gripper: Gripper, n: int) -> None:
-        calls.finger_info(n)
-        self._g = gripper
-        self.n = n
-
-    def info(self) -> FingerInfo:
-        """60h/70h: finger type and data frame size (bytes)."""
-        return self._g._run(calls.finger_info(self.n))
-
-    def flags(self) -> FingerFlag:
-        """61h/71h: finger state flags."""
-        return self._g._run(calls.finger_flags(self.n))
-
-    def power(self, on: bool = True, *, timeout: float | None = None) -> None:
-        """62h/72h: switch the finger's power (switching on takes ~500 ms: waits for it)."""
-        self._g._run_motion(calls.finger_power(self.n, on), True, timeout)
-
-    def data(self) -> bytes:
-        """63h/73h: the finger's current data frame."""
-        return self._g._run(calls.finger_data(self.n))
-
-
-class Gripper:
+class Gripper(Commands):
     """Blocking driver for a WSG gripper: ``with Gripper("tcp://192.168.1.20") as g: g.home()``.
 
     Same methods and arguments as :class:`~pywsg.client.aio.AsyncGripper`, without ``await``.
@@ -763,109 +596,6 @@ class Gripper:
             raise raise_for(call, frame, None)
         return Reply(frame.command_id, st, frame.params)
 
-    # ------------------------------------------------------------------ commands
-    def loop(self, data: bytes = b"pywsg") -> bytes:
-        """06h Loop: the gripper returns ``data`` (at most 256 bytes)."""
-        return self._run(calls.loop(data))
-
-    def home(self, direction: HomingDirection | int | str | None = None, *, wait: bool = True,
-             timeout: float | None = None) -> Motion:
-        """20h Homing: reference the fingers (direction None/0: default, 1 positive, 2 negative)."""
-        return self._run_motion(calls.homing(direction), wait, timeout)
-
-    def move(self, width: float, speed: float, relative: bool = False, stop_on_block: bool = False, *,
-             wait: bool = True, timeout: float | None = None) -> Motion:
-        """21h Pre-position: move to ``width`` mm (or by it, ``relative``) at ``speed`` mm/s."""
-        return self._run_motion(calls.preposition(width, speed, relative, stop_on_block), wait, timeout)
-
-    def grip(self, width: float, speed: float, force: float | None = None, *, wait: bool = True,
-             timeout: float | None = None) -> Motion:
-        """25h Grip Part of nominal ``width`` mm at ``speed`` mm/s; ``force`` N sets the force limit first.
-        Raises NoPartError when no part is found within the clamping travel."""
-        if force is not None:
-            self.set_force_limit(force)
-        return self._run_motion(calls.grip(width, speed), wait, timeout)
-
-    def release(self, width: float, speed: float, *, wait: bool = True, timeout: float | None = None) -> Motion:
-        """26h Release Part: open to ``width`` mm at ``speed`` mm/s."""
-        return self._run_motion(calls.release(width, speed), wait, timeout)
-
-    def stop(self) -> None:
-        """22h Stop: end any motion (that motion ends with AbortedError)."""
-        self._run(calls.stop())
-
-    def fast_stop(self) -> None:
-        """23h FAST STOP: motion commands are refused until ``acknowledge()``."""
-        self._run(calls.fast_stop())
-
-    def acknowledge(self) -> None:
-        """24h Acknowledge FAST STOP (sends the key "ack")."""
-        self._run(calls.acknowledge())
-
-    def set_acceleration(self, acceleration: float) -> None:
-        """30h: acceleration in mm/s² (clamped by the gripper to its limits)."""
-        self._run(calls.set_acceleration(acceleration))
-
-    def acceleration(self) -> float:
-        """31h: the set acceleration, mm/s²."""
-        return self._run(calls.acceleration())
-
-    def set_force_limit(self, force: float) -> None:
-        """32h: gripping force limit in N (clamped to the nominal or overdrive force)."""
-        self._run(calls.set_force_limit(force))
-
-    def force_limit(self) -> float:
-        """33h: the force limit, N."""
-        return self._run(calls.force_limit())
-
-    def set_soft_limits(self, minus: float, plus: float) -> None:
-        """34h: soft limits in mm (a motion beyond them: RangeError)."""
-        self._run(calls.set_soft_limits(minus, plus))
-
-    def soft_limits(self) -> SoftLimits | None:
-        """35h: the soft limits in mm, or None when none are set."""
-        return self._run(calls.soft_limits())
-
-    def clear_soft_limits(self) -> None:
-        """36h: clear the soft limits."""
-        self._run(calls.clear_soft_limits())
-
-    def overdrive(self, enable: bool = True) -> None:
-        """37h: enable (or disable) force overdrive mode."""
-        self._run(calls.overdrive(enable))
-
-    def tare(self) -> None:
-        """38h: zero the force sensor (not while HOLDING: AccessDeniedError)."""
-        self._run(calls.tare())
-
-    def system_state(self) -> SystemFlag:
-        """40h: the system state flags."""
-        return self._run(calls.system_state())
-
-    def gripper_state(self) -> GripperState | int:
-        """41h: the grasping state (IDLE, HOLDING, NO_PART, ...)."""
-        return self._run(calls.gripper_state())
-
-    def statistics(self, reset: bool = False) -> Statistics:
-        """42h: grips total / no part / part lost (``reset`` clears them after reading)."""
-        return self._run(calls.statistics(reset))
-
-    def width(self) -> float:
-        """43h: opening width, mm."""
-        return self._run(calls.width())
-
-    def speed(self) -> float:
-        """44h: finger speed, mm/s."""
-        return self._run(calls.speed())
-
-    def force(self) -> float:
-        """45h: gripping force, N."""
-        return self._run(calls.force())
-
-    def temperature(self) -> float:
-        """46h: device temperature, °C."""
-        return self._run(calls.temperature())
-
     def state(self) -> State:
         """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
         cs: list[Call[Any]] = [calls.width(), calls.speed(), calls.force(), calls.gripper_state(),
@@ -882,25 +612,6 @@ class Gripper:
             out.append(self._result(c, w.frame))
         return State(*out)
 
-    def info(self) -> SystemInfo:
-        """50h: device type, hardware revision, firmware version, serial number."""
-        return self._run(calls.info())
-
-    def set_tag(self, tag: str) -> None:
-        """51h: set the device tag (at most 64 printable ASCII characters)."""
-        self._run(calls.set_tag(tag))
-
-    def tag(self) -> str | None:
-        """52h: the device tag, or None when none is set."""
-        return self._run(calls.tag())
-
-    def limits(self) -> Limits:
-        """53h: stroke (mm), speed (mm/s), acceleration (mm/s²) and force (N) limits."""
-        return self._run(calls.limits())
-
-    def finger(self, n: int) -> Finger:
-        """Finger 1 or 2 (60h..63h, 70h..73h)."""
-        return Finger(self, n)
 
     # ------------------------------------------------------------------ streams
     def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False, *,

@@ -187,4 +187,8 @@ def open_sync(ep: Endpoint, timeout: float) -> SyncTransport:
         return TcpSyncTransport(ep, timeout)
     if ep.scheme == "udp":
         return UdpSyncTransport(ep, timeout)
+    if ep.scheme == "can":
+        from .can_transport import CanSyncTransport
+
+        return CanSyncTransport(ep, timeout)
     return SerialSyncTransport(ep, timeout)

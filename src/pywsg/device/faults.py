@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .gripper import VirtualGripper
+from typing import Protocol
 
 DEFAULT_PART_STIFFNESS = 500.0  # N/mm, assumed: a firm plastic part
 
@@ -31,10 +28,29 @@ class Obstacle:
     stiffness: float = math.inf
 
 
+class FaultTarget(Protocol):
+    """The part of the device that faults act on (the device core implements it)."""
+
+    @property
+    def obstacles(self) -> dict[str, Obstacle]: ...
+
+    def true_width(self, now: float | None = None) -> float: ...
+
+    def obstacles_changed(self) -> None: ...
+
+    def heat(self, delta_c: float) -> None: ...
+
+    def set_power_fault(self, on: bool) -> None: ...
+
+    def set_current_fault(self, on: bool) -> None: ...
+
+    def set_finger_fault(self, n: int, on: bool) -> None: ...
+
+
 class Faults:
     """Injects faults into one virtual gripper."""
 
-    def __init__(self, gripper: VirtualGripper) -> None:
+    def __init__(self, gripper: FaultTarget) -> None:
         self._g = gripper
 
     def _side(self, width: float, inside: bool | None) -> int:

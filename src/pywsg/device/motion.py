@@ -75,7 +75,8 @@ class Trajectory:
         return ph.x(t) if ph is not None else self.start_x
 
     def velocity(self, t: float) -> float:
-        if not self.phases or t <= self.start_time or t >= self.end_time:
+        # at the start itself the first phase's v0: a motion planned from a moving state carries its speed
+        if not self.phases or t < self.start_time or t >= self.end_time:
             return 0.0
         ph = self._phase(t)
         return ph.v(t) if ph is not None else 0.0

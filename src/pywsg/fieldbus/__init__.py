@@ -2,7 +2,7 @@
 
 - :mod:`.image` — the 8-byte output / 12-byte input register image (sans-IO, bus units).
 - :mod:`.controller` — :class:`FieldbusController`: edges, jog levels, FAST STOP rules on a virtual gripper.
-- :mod:`.modbus` — ``serve_modbus(gripper, host, port)``: the image over Modbus/TCP (pymodbus 3.16).
+- :mod:`.modbus` — ``serve_modbus(gripper, host, port)``: the image over Modbus/TCP (pymodbus 3.13.1 … 3.16).
 - :mod:`.plc` — :class:`FieldbusGripper`: the PLC side, a Modbus/TCP master with the same edge semantics.
 - :mod:`.profibus` — PROFIBUS diagnosis message and image bytes as plain functions.
 """

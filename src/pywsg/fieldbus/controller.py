@@ -19,6 +19,20 @@ Rules (manual, SPEC-NOTES and the decisions in docs/fieldbus.md):
   (STATUS = E_CMD_ABORTED).
 - STATUS CODE holds the last command's result: E_CMD_PENDING while it runs, then its final status.
 - IF is copied to the gripper's script flags on every update; OF is read from them.
+
+Gripper state (GSTATE) is the fieldbus manuals' own, computed here on top of the device's state,
+so it holds whatever the binary protocol's 41h reports (decisions in docs/fidelity.md):
+
+- Preconditions (002 §4.1 / 003 §5.1 "MOVE can only be issued if the gripper is idle"; the others
+  decided by analogy, table :data:`STARTS_FROM`): a motion edge in another state is refused and the
+  motion in progress is left alone; STATUS = E_ALREADY_RUNNING while a motion runs, else
+  E_ACCESS_DENIED.
+- "In case of an error, the gripper state is set to ERROR" (002 §4.1–4.3, 003 §5.1–5.3): a MOVE,
+  GRIP, RELEASE or HOMING whose final status is an error shows ERROR with that status until the
+  next accepted command (a GRIP that finds no part is NO_PART / E_CMD_FAILED, as §4.2 says).
+  MOVE stops on a block (21h flag STOP_ON_BLOCK) instead of clamping on, so it ends.
+- FAST STOP: "The gripper state is set to IDLE" (002 §4.6, 003 §5.6), from any source, while the
+  FAST STOP lasts and until the next accepted command or a motion started elsewhere.
 """
 
 from __future__ import annotations
@@ -28,10 +42,28 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from ..protocol import CATALOG, Command, Frame, GripperState, Status, SystemFlag
+from ..protocol import CATALOG, Command, Frame, GripperState, PrepositionFlag, Status, SystemFlag
 from .image import JOG, MOTION_COMMANDS, CmdFlag, InputImage, OutputImage, force_scale
 
 log = logging.getLogger(__name__)
+
+GS = GripperState
+#: Gripper states in which fingers move on a command; a new motion edge is refused (E_ALREADY_RUNNING).
+RUNNING_STATES = frozenset({GS.GRIPPING, GS.RELEASING, GS.POSITIONING})
+#: The gripper states each motion command may start from. MOVE: 002 §4.1 / 003 §5.1. The rest are
+#: decisions (docs/fidelity.md): GRIP like MOVE from IDLE only; RELEASE also takes the part (or the
+#: fingers after NO_PART / PART_LOST / ERROR) away; HOMING and jog are the ways out of a bad
+#: position, refused only while a part is held.
+STARTS_FROM: dict[CmdFlag, frozenset[GripperState]] = {
+    CmdFlag.MOVE: frozenset({GS.IDLE}),
+    CmdFlag.GRIP: frozenset({GS.IDLE}),
+    CmdFlag.RELEASE: frozenset({GS.IDLE, GS.HOLDING, GS.NO_PART, GS.PART_LOST, GS.ERROR}),
+    CmdFlag.HOMING: frozenset({GS.IDLE, GS.NO_PART, GS.PART_LOST, GS.ERROR}),
+    JOG: frozenset({GS.IDLE, GS.NO_PART, GS.PART_LOST, GS.ERROR}),
+}
+#: Final status of a motion command → the command that set it (for the ERROR rule).
+_MOTION_IDS = {int(Command.HOMING): CmdFlag.HOMING, int(Command.PREPOSITION): CmdFlag.MOVE,
+               int(Command.GRIP_PART): CmdFlag.GRIP, int(Command.RELEASE_PART): CmdFlag.RELEASE}
 
 
 class SnapshotLike(Protocol):
@@ -119,6 +151,10 @@ class FieldbusController:
         self._pending: int | None = None   # command ID whose final reply sets STATUS
         self._jog_dir = 0
         self._jog_done = False
+        # The fieldbus gripper state shown instead of the device's (ERROR after a failed motion, IDLE
+        # after FAST STOP) until the next accepted command; _failed is a final error not yet resolved.
+        self._shown: GripperState | None = None
+        self._failed: tuple[CmdFlag, int] | None = None
         self._listeners: list[Callable[[Event], None]] = []
         self.session = gripper.open_session("fieldbus", peer="fieldbus", deliver=self._deliver)
         self.limits = self._read_limits()
@@ -132,7 +168,7 @@ class FieldbusController:
     def input_image(self) -> InputImage:
         """The input image now (SYSSTATE, WIDTH, FORCE fresh on every call)."""
         snap = self._state()
-        state = snap.gripper_state
+        state = self._fieldbus_state(snap)
         if self._jog_dir and not self._jog_done:
             if snap.flags & SystemFlag.SF_MOVING:
                 # 002 §4.7: the gripper state is RELEASING while jogging.
@@ -145,6 +181,31 @@ class FieldbusController:
         of_flags = int(getattr(self.gripper, "script_of", 0)) & 0xFF
         return InputImage.from_state(state, SystemFlag(int(snap.flags)), float(snap.width),
                                      float(snap.force), self.status, of_flags, self.model)
+
+    def gripper_state(self) -> GripperState:
+        """GSTATE as the fieldbus shows it now (see the module docstring)."""
+        return self.input_image().state or GS.IDLE
+
+    def _fieldbus_state(self, snap: SnapshotLike) -> GripperState:
+        device = GripperState(snap.gripper_state)
+        if snap.flags & SystemFlag.SF_FAST_STOP:
+            # 002 §4.6 / 003 §5.6: FAST STOP sets the gripper state to IDLE (the device's 41h may say
+            # ERROR or HOLDING); it stays IDLE after the acknowledgement until the next command.
+            self._shown, self._failed = GS.IDLE, None
+        elif self._failed is not None:
+            cmd, status = self._failed
+            self._failed = None
+            if cmd == CmdFlag.GRIP and device == GS.NO_PART:
+                # 002 §4.2: "If no part was found, the status code is set to E_CMD_FAILED" (also when
+                # the fingers ran into the end stop instead of through the clamping travel).
+                self.status = int(Status.E_CMD_FAILED)
+            else:
+                self._shown = GS.ERROR
+                self._emit(f"{cmd.name} failed ({Status.describe(status)}): gripper state ERROR")
+        elif self._shown is not None and device in RUNNING_STATES and snap.flags & SystemFlag.SF_MOVING \
+                and self._pending is None and not self._jog_dir:
+            self._shown = None   # another interface started a motion: show it
+        return device if self._shown is None else self._shown
 
     def _state(self) -> SnapshotLike:
         """The four values the input image needs; cheaper than a full snapshot on every bus read."""
@@ -203,11 +264,24 @@ class FieldbusController:
                 if held:
                     self._emit(f"{lowest.name} ignored: STOP/ACK or FASTSTOP held at 1")
                     self._set_status(Status.E_ACCESS_DENIED)
+                elif self._refused(lowest):
+                    pass
                 else:
                     self._motion(lowest, new)
         self._update_jog(new, blocked=bool(held))
 
     # --- commands ------------------------------------------------------------------------------
+    def _refused(self, cmd: CmdFlag) -> bool:
+        """Check the command's precondition (:data:`STARTS_FROM`); if it fails, say so in STATUS."""
+        state = GS.RELEASING if self._jog_dir and not self._jog_done else self.gripper_state()
+        if state in STARTS_FROM[cmd]:
+            return False
+        status = Status.E_ALREADY_RUNNING if state in RUNNING_STATES else Status.E_ACCESS_DENIED
+        name = "JOG" if cmd == JOG else cmd.name
+        self._emit(f"{name} refused: gripper state {state.name} ({Status.describe(status)})")
+        self._set_status(status)
+        return True
+
     def _motion(self, cmd: CmdFlag, out: OutputImage) -> None:
         width, speed, force = out.width / 100, out.speed / 100, out.force_limit / self.force_scale
         lim = self.limits
@@ -233,14 +307,18 @@ class FieldbusController:
         elif cmd == CmdFlag.MOVE:
             if out.force_limit:
                 frames.append((Command.SET_FORCE_LIMIT, {"force": force}))
-            frames.append((Command.PREPOSITION, {"flags": 0, "width": width, "speed": speed}))
+            # Stop on a block: a MOVE into an obstacle ends (E_AXIS_BLOCKED → ERROR) instead of
+            # clamping on in POSITIONING with no end (docs/fidelity.md).
+            frames.append((Command.PREPOSITION, {"flags": int(PrepositionFlag.STOP_ON_BLOCK), "width": width,
+                                                 "speed": speed}))
         elif cmd == CmdFlag.GRIP:
             frames.append((Command.SET_FORCE_LIMIT, {"force": force}))
             frames.append((Command.GRIP_PART, {"width": width, "speed": speed}))
         elif cmd == CmdFlag.RELEASE:
             frames.append((Command.RELEASE_PART, {"width": width, "speed": speed}))
         self._emit(f"{cmd.name} width={width:.2f} mm speed={speed:.2f} mm/s force={force:g} N")
-        self._run(frames)
+        if self._run(frames):
+            self._shown = None   # accepted: the gripper state is the command's from here
 
     def _stop_ack(self, out: OutputImage) -> None:
         snap = self.gripper.snapshot()
@@ -255,15 +333,18 @@ class FieldbusController:
         else:
             self._emit("STOP/ACK: stop")
         self._stop_jog()
-        if self._run([(Command.STOP, {})]) and self.gripper.snapshot().gripper_state != GripperState.IDLE:
-            # 002 §4.5: STOP/ACK sets the gripper state to IDLE (also from ERROR, HOLDING, NO_PART),
-            # which 22h alone does not do when no motion was running.
-            self.gripper.reset_gripper_state()
+        if self._run([(Command.STOP, {})]):
+            self._shown, self._failed = None, None
+            if self.gripper.snapshot().gripper_state != GripperState.IDLE:
+                # 002 §4.5: STOP/ACK sets the gripper state to IDLE (also from ERROR, HOLDING, NO_PART),
+                # which 22h alone does not do when no motion was running.
+                self.gripper.reset_gripper_state()
 
     def _raise_fast_stop(self, reason: str, status: Status) -> None:
         self._emit(f"FAST STOP: {reason}")
         self._stop_jog()
         self._run([(Command.FAST_STOP, {})])
+        self._shown, self._failed = GS.IDLE, None   # 002 §4.6 / 003 §5.6
         self._set_status(status)
 
     def _update_jog(self, out: OutputImage, blocked: bool) -> None:
@@ -286,6 +367,8 @@ class FieldbusController:
         if snap.flags & SystemFlag.SF_FAST_STOP:
             self._stop_jog()
             self._set_status(Status.E_ACCESS_DENIED)
+            return
+        if not self._jog_dir and self._refused(JOG):
             return
         speed, force = out.speed / 100, out.force_limit / self.force_scale
         if speed > self.limits.max_speed or force > self._max_force() or force < 0:
@@ -313,6 +396,7 @@ class FieldbusController:
             return
         self._jog_dir = direction
         self._jog_done = False
+        self._shown = None
         self._jog_params = (out.speed, out.force_limit)
         self._set_status(Status.E_CMD_PENDING)
 
@@ -348,6 +432,9 @@ class FieldbusController:
                 self._pending = None
                 self._set_status(status)
                 self._emit(f"{CATALOG[frame.command_id].name} finished: {Status.describe(status)}")
+                if status != Status.E_SUCCESS and frame.command_id in _MOTION_IDS:
+                    # resolved on the next read, when the device has settled its own state
+                    self._failed = (_MOTION_IDS[frame.command_id], status)
 
     def _set_status(self, status: Status | int) -> None:
         self.status = int(status)

@@ -7,7 +7,7 @@ bytes   output (PLC→WSG)  input (WSG→PLC)
 ======  ===============  =============================================================
 0       CMDFLAGS          GSTATE (one-hot gripper state)
 1       IF (user flags)   OF (user flags)
-2..3    WIDTH  int16      SYSSTATE uint32 (bytes 2..5)
+2..3    WIDTH  int16      SYSSTATE 32 flag bits (bytes 2..5, see below)
 4..5    SPEED  uint16
 6..7    FORCELIMIT int16  WIDTH  int16
 8..9                      FORCE  int16
@@ -15,10 +15,16 @@ bytes   output (PLC→WSG)  input (WSG→PLC)
 ======  ===============  =============================================================
 
 Units on the bus: WIDTH 1/100 mm, SPEED 1/100 mm/s, FORCE and FORCELIMIT 1/100 N (1/10 N on the
-WSG 70). Multi-byte fields are big-endian and Modbus register k is ``byte[2k] << 8 | byte[2k+1]``
-(see docs/architecture.md, "Modbus register byte order": the manual's worked example, holding
-register 0 = 288 → MOVE + IF6, decides it). The ``*_mm`` / ``*_n`` helpers convert to the units
-the rest of pywsg uses (mm, mm/s, N).
+WSG 70). The numeric fields are big-endian (S7 ``Int``/``UInt``) and Modbus register k is
+``byte[2k] << 8 | byte[2k+1]`` (the manual's worked example, holding register 0 = 288 → MOVE + IF6,
+decides it; docs/fieldbus.md). The ``*_mm`` / ``*_n`` helpers convert to mm, mm/s and N.
+
+SYSSTATE is not a number on the bus but 32 flags: the SCL receive structure of 002 Appendix D lays
+``SYSSTATE : Struct REFERENCED : Bool; MOVING : Bool; …`` over bytes 2..5, and an S7 PLC puts the
+n-th Bool of a struct at byte n // 8, bit n % 8 ("the natural order of the bits, starting with Byte
+0 and Bit 0", 002 §2.3). So flag bit n (Appendix B numbering) is image byte 2 + n // 8, bit n % 8:
+REFERENCED is byte 2 bit 0, FAST_STOP byte 3 bit 4 — the bytes of the flag word least significant
+first. Discrete input i is image byte i // 8, bit i % 8, the same rule for every input bit.
 """
 
 from __future__ import annotations
@@ -37,7 +43,22 @@ COILS = 16
 DISCRETE_INPUTS = 48
 
 _OUT = struct.Struct(">BBhHh")
-_IN = struct.Struct(">BBIhhH")
+# SYSSTATE as "<I": flag bit n lands in byte 2 + n // 8, bit n % 8 (the SCL struct of 002 App. D).
+_IN = struct.Struct(">BB4shhH")
+SYSSTATE_OFFSET = 2
+SYSSTATE_SIZE = 4
+
+
+def sysstate_bytes(flags: SystemFlag | int) -> bytes:
+    """The 4 SYSSTATE bytes of the image (and of the PROFIBUS diagnosis): bit n → byte n // 8, bit n % 8."""
+    return (int(flags) & 0xFFFFFFFF).to_bytes(SYSSTATE_SIZE, "little")
+
+
+def sysstate_from_bytes(data: bytes) -> SystemFlag:
+    """Inverse of :func:`sysstate_bytes`."""
+    if len(data) != SYSSTATE_SIZE:
+        raise ValueError(f"SYSSTATE is {SYSSTATE_SIZE} bytes, got {len(data)}")
+    return SystemFlag(int.from_bytes(data, "little"))
 
 INT16_MIN, INT16_MAX = -0x8000, 0x7FFF
 UINT16_MAX = 0xFFFF
@@ -173,7 +194,7 @@ class InputImage:
 
     def pack(self) -> bytes:
         """The 12 input bytes."""
-        return _IN.pack(int(self.gstate), self.of_flags, int(self.sysstate) & 0xFFFFFFFF, self.width,
+        return _IN.pack(int(self.gstate), self.of_flags, sysstate_bytes(self.sysstate), self.width,
                         self.force, self.status)
 
     @classmethod
@@ -182,7 +203,7 @@ class InputImage:
         if len(data) != INPUT_SIZE:
             raise ValueError(f"input image is {INPUT_SIZE} bytes, got {len(data)}")
         gs, of_flags, sysstate, width, force, status = _IN.unpack(data)
-        return cls(GState(gs), of_flags, SystemFlag(sysstate), width, force, status)
+        return cls(GState(gs), of_flags, sysstate_from_bytes(sysstate), width, force, status)
 
     def registers(self) -> list[int]:
         """Input registers 0..5."""
@@ -194,12 +215,12 @@ class InputImage:
         return cls.unpack(registers_to_bytes(regs))
 
     def discrete_inputs(self) -> list[bool]:
-        """Discrete inputs 0..47: GSTATE bits, OF1..OF8, then SYSSTATE bits 0..31 in flag order.
+        """Discrete inputs 0..47: input i is image byte i // 8, bit i % 8 (002 §2.3).
 
-        Input 16 is SF_REFERENCED, input 28 SF_FAST_STOP (the bits' natural order, as in the
-        manual's SCL receive structure), whatever the byte order of SYSSTATE inside the image.
+        So 0..7 are GSTATE, 8..15 OF1..OF8, 16 + n SYSSTATE flag bit n (16 = REFERENCED,
+        28 = FAST_STOP), the same bits the image bytes and input registers 1..2 carry.
         """
-        return bits_of(int(self.gstate), 8) + bits_of(self.of_flags, 8) + bits_of(int(self.sysstate), 32)
+        return image_bits(self.pack()[:DISCRETE_INPUTS // 8])
 
     @classmethod
     def from_state(cls, state: GripperState, sysstate: SystemFlag, width_mm: float, force_n: float,
@@ -242,6 +263,11 @@ def bytes_to_registers(data: bytes) -> list[int]:
 def registers_to_bytes(regs: list[int]) -> bytes:
     """Inverse of :func:`bytes_to_registers`."""
     return b"".join((r & 0xFFFF).to_bytes(2, "big") for r in regs)
+
+
+def image_bits(data: bytes) -> list[bool]:
+    """The bits of ``data`` in the natural order: bit i is byte i // 8, bit i % 8 (002 §2.3)."""
+    return [bool(data[i // 8] >> (i % 8) & 1) for i in range(8 * len(data))]
 
 
 def bits_of(value: int, n: int) -> list[bool]:

@@ -1,8 +1,9 @@
 """Modbus/TCP server for the fieldbus interface: the only module importing pymodbus server APIs.
 
-pymodbus is pinned to 3.16.x (its datastore API changes between minor releases). In 3.16 the
-supported hook is ``pymodbus.simulator.SimDevice(id=0, simdata=..., action=callback)``; the action
-runs before a write is stored and may return an exception code. We keep four separate blocks:
+pymodbus ``>=3.13.1,<3.17`` (its server API changes between minor releases: 3.13.0 and older lack
+what is used here, 3.17 does not exist yet; 3.13.1, 3.14.0, 3.15.0 and 3.16.1 pass tests/fieldbus).
+The hook is ``pymodbus.simulator.SimDevice(id=0, simdata=..., action=callback)``; the action runs
+before a write is stored and may return an exception code. We keep four separate blocks:
 
 =====================  ==========  ===============================================
 table                  addresses   content
@@ -16,8 +17,12 @@ discrete inputs        0..47       GSTATE bits, OF1..OF8, SYSSTATE bits 0..31
 The controller is the single source of truth: every read refreshes the block from it (so SYSSTATE,
 WIDTH and FORCE are fresh on every read) and every write is turned into a new output image before
 pymodbus stores it. Anything outside these addresses is ILLEGAL DATA ADDRESS (02); function codes
-pymodbus does not serve are ILLEGAL FUNCTION (01); writes to read-only tables are impossible by
-function code (there is no "write input register"). Unit id: any (``id=0``).
+the map does not use are ILLEGAL FUNCTION (01); malformed quantities and values are ILLEGAL DATA
+VALUE (03, :func:`check_pdu`); writes to read-only tables are impossible by function code (there
+is no "write input register"). Unit id: any (``id=0``).
+
+The TCP stream is framed here, not by pymodbus 3.16, whose framing drops pipelined requests and
+stalls on a foreign protocol id (:class:`_Connection`, docs/fieldbus.md "Conformance").
 """
 
 from __future__ import annotations
@@ -25,11 +30,14 @@ from __future__ import annotations
 import asyncio
 import logging
 import struct
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
 from pymodbus.constants import ExcCodes
+from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .controller import FieldbusController
@@ -45,23 +53,76 @@ _FC_MASK_WRITE, _FC_READ_WRITE = 22, 23
 _COIL_FCS = {_FC_READ_COILS, _FC_WRITE_COIL, _FC_WRITE_COILS}
 _HR_FCS = {_FC_READ_HR, _FC_WRITE_REG, _FC_WRITE_REGS, _FC_MASK_WRITE, _FC_READ_WRITE}
 
-
-_QUANTITY_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125, 15: 1968, 16: 123}
-
-
 # read coils / discrete inputs / holding / input registers, write single / multiple coils and
 # registers, read/write multiple registers: what the WSG register map is served through
 _SERVED_FCS = frozenset({0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F, 0x10, 0x17})
-_UNDECODABLE_FC = 0x7F
+#: Largest MBAP length field: unit id + a PDU of at most 253 bytes (an ADU is at most 260 bytes).
+MAX_MBAP_LENGTH = 254
+#: Requests queued on one connection before the server stops reading from it (back-pressure).
+MAX_QUEUED = 64
 
 
-def _bad_quantity(pdu: bytes) -> bool:
-    """True if a read/write-multiple request's quantity is outside the Modbus limits."""
-    limit = _QUANTITY_LIMITS.get(pdu[0]) if pdu else None
-    if limit is None or len(pdu) < 5:
-        return False
-    count = pdu[3] << 8 | pdu[4]
-    return not 1 <= count <= limit
+#: Size of the table each function code addresses (coils, discrete inputs, holding / input registers).
+_TABLE_SIZE = {1: COILS, 5: COILS, 15: COILS, 2: DISCRETE_INPUTS, 3: OUTPUT_REGISTERS, 6: OUTPUT_REGISTERS,
+               16: OUTPUT_REGISTERS, 23: OUTPUT_REGISTERS, 4: INPUT_REGISTERS}
+
+
+def check_pdu(pdu: bytes) -> ExcCodes | None:
+    """The exception a request PDU earns, or None if pymodbus may execute it.
+
+    Modbus Application Protocol V1.1b3, in the spec's order: a function code the WSG map does not
+    serve → 01 ILLEGAL FUNCTION; a quantity outside its range, a byte count that does not match it,
+    a wrong PDU length or an FC5 value other than FF00h / 0000h → 03 ILLEGAL DATA VALUE; a range
+    beyond the table (coils 0..15, discrete inputs 0..47, holding registers 0..3, input registers
+    0..5) → 02 ILLEGAL DATA ADDRESS. Checked here so the answers do not depend on the pymodbus release.
+    """
+    code = _check_value(pdu)
+    if code is not None:
+        return code
+    fc, body = pdu[0], pdu[1:]
+    size = _TABLE_SIZE[fc]
+    ranges = [(body[0] << 8 | body[1], 1 if fc in (5, 6) else body[2] << 8 | body[3])]
+    if fc == _FC_READ_WRITE:
+        ranges.append((body[4] << 8 | body[5], body[6] << 8 | body[7]))
+    if any(start + count > size for start, count in ranges):
+        return ExcCodes.ILLEGAL_ADDRESS
+    return None
+
+
+def _check_value(pdu: bytes) -> ExcCodes | None:
+    """Function code (01) and quantity / length / value (03) checks of :func:`check_pdu`."""
+    fc = pdu[0]
+    if fc not in _SERVED_FCS:
+        return ExcCodes.ILLEGAL_FUNCTION
+    body = pdu[1:]
+
+    def word(i: int) -> int:
+        return body[i] << 8 | body[i + 1]
+
+    if fc in (1, 2, 3, 4, 5, 6):
+        if len(body) != 4:
+            return ExcCodes.ILLEGAL_VALUE
+        limit = {1: 2000, 2: 2000, 3: 125, 4: 125}.get(fc)
+        if limit is not None and not 1 <= word(2) <= limit:
+            return ExcCodes.ILLEGAL_VALUE
+        if fc == _FC_WRITE_COIL and word(2) not in (0x0000, 0xFF00):
+            return ExcCodes.ILLEGAL_VALUE
+        return None
+    if fc in (_FC_WRITE_COILS, _FC_WRITE_REGS):
+        if len(body) < 5:
+            return ExcCodes.ILLEGAL_VALUE
+        count, nbytes = word(2), body[4]
+        limit, need = (1968, (count + 7) // 8) if fc == _FC_WRITE_COILS else (123, 2 * count)
+        if not 1 <= count <= limit or nbytes != need or len(body) != 5 + nbytes:
+            return ExcCodes.ILLEGAL_VALUE
+        return None
+    # FC23 read/write multiple registers: read 1..125, write 1..121
+    if len(body) < 9:
+        return ExcCodes.ILLEGAL_VALUE
+    read, write, nbytes = word(2), word(6), body[8]
+    if not 1 <= read <= 125 or not 1 <= write <= 121 or nbytes != 2 * write or len(body) != 9 + nbytes:
+        return ExcCodes.ILLEGAL_VALUE
+    return None
 
 
 def _words(bits: list[bool]) -> list[int]:
@@ -75,7 +136,6 @@ class FieldbusModbusAdapter:
     def __init__(self, controller: FieldbusController) -> None:
         self.controller = controller
         self.requests = 0
-        self._last_fc: dict[int, tuple[int, bool]] = {}
 
     def device(self) -> SimDevice:
         """The pymodbus device: four separate blocks, bit-addressed coils and discrete inputs."""
@@ -109,35 +169,6 @@ class FieldbusModbusAdapter:
         self._refresh(function_code, registers)
         return None
 
-    def trace_packet(self, sending: bool, data: bytes) -> bytes:
-        """pymodbus packet hook: make undecodable requests get the exception a PLC expects.
-
-        pymodbus 3.16 answers every request it cannot decode with function code 80h and exception
-        01: a Modbus master expects the request's function code | 80h, and exception 03 (ILLEGAL
-        DATA VALUE) when only the quantity is out of range (e.g. reading 0 registers).
-        """
-        if not sending:
-            pos = 0
-            out = bytearray(data)
-            while pos + 8 <= len(data):   # MBAP: tid, protocol, length (unit id + PDU), unit id, FC
-                tid, _, length = struct.unpack_from(">HHH", data, pos)
-                pdu = data[pos + 7:pos + 6 + max(length, 2)]
-                self._last_fc[tid] = (pdu[0], _bad_quantity(pdu))
-                if pdu[0] not in _SERVED_FCS:
-                    # a code pymodbus would serve (diagnostics, event counters, ...) but the WSG's
-                    # register map has no use for: make it undecodable so it is ILLEGAL FUNCTION
-                    out[pos + 7] = _UNDECODABLE_FC
-                for k in list(self._last_fc)[:-64]:
-                    del self._last_fc[k]
-                pos += 6 + max(length, 2)
-            return bytes(out)
-        if len(data) >= 9 and data[7] & 0x80 and data[8] == ExcCodes.ILLEGAL_FUNCTION:
-            tid = struct.unpack_from(">H", data)[0]
-            fc, bad_quantity = self._last_fc.pop(tid, (data[7] & 0x7F, False))
-            code = ExcCodes.ILLEGAL_VALUE if bad_quantity else ExcCodes.ILLEGAL_FUNCTION
-            return data[:7] + bytes([(fc & 0x7F) | 0x80, code]) + data[9:]
-        return data
-
     def _refresh(self, function_code: int, registers: list[int]) -> None:
         """Fill the accessed block from the controller (reads see fresh values)."""
         ctl = self.controller
@@ -152,6 +183,89 @@ class FieldbusModbusAdapter:
         else:
             return
         registers[:len(fresh)] = fresh
+
+
+class _Connection(ServerRequestHandler):
+    """One Modbus/TCP connection, framed by its MBAP headers (works around pymodbus 3.16).
+
+    pymodbus 3.16 answers only the first of several requests that arrive in one TCP segment (the
+    rest wait for the next segment), stalls a connection for good after a non-zero protocol id,
+    buffers whatever length an MBAP header claims, and answers malformed PDUs with exception 01.
+    Here every complete ADU in the stream is cut by its length field and answered in order;
+    protocol id ≠ 0 and length < 2 ADUs are dropped unanswered (nothing to answer: not Modbus, no
+    function code); a length > 254 closes the connection (the stream cannot be framed); PDUs are
+    checked by :func:`check_pdu` before pymodbus decodes and executes them.
+    """
+
+    def __init__(self, owner: ModbusTcpServer) -> None:
+        super().__init__(owner, None, None, None)  # type: ignore[no-untyped-call]
+        self._queue: deque[ModbusPDU] = deque()
+        self._worker: asyncio.Task[None] | None = None
+        self._paused = False
+
+    def callback_data(self, data: bytes, addr: tuple[str, int] | None = None) -> int:
+        pos = 0
+        while len(data) - pos >= 6:
+            tid, protocol, length = struct.unpack_from(">HHH", data, pos)
+            if length > MAX_MBAP_LENGTH:
+                log.warning("Modbus/TCP: MBAP length %d > %d, closing the connection", length, MAX_MBAP_LENGTH)
+                self.close()
+                return len(data)
+            if len(data) - pos < 6 + length:
+                break   # the rest of this ADU is still on its way
+            frame = data[pos + 6:pos + 6 + length]
+            pos += 6 + length
+            if protocol != 0 or length < 2:
+                log.debug("Modbus/TCP: dropped ADU tid=%d protocol=%d length=%d", tid, protocol, length)
+                continue
+            self._submit(tid, frame[0], frame[1:])
+        return pos
+
+    def _submit(self, tid: int, unit: int, pdu: bytes) -> None:
+        request: ModbusPDU | None = None
+        code = check_pdu(pdu)
+        if code is None:
+            request = self.framer.decoder.decode(pdu)
+            if request is None:
+                code = ExcCodes.ILLEGAL_FUNCTION
+        if request is None:
+            request = ExceptionResponse(pdu[0] & 0x7F, int(code or ExcCodes.ILLEGAL_FUNCTION), unit, tid)
+        request.dev_id, request.transaction_id = unit, tid
+        self._queue.append(request)
+        if len(self._queue) >= MAX_QUEUED and not self._paused:
+            self._paused = True
+            self._reading(False)
+        if self._worker is None or self._worker.done():
+            self._worker = asyncio.get_running_loop().create_task(self._drain())
+
+    async def _drain(self) -> None:
+        """Execute queued requests one by one, so replies leave in request order."""
+        while self._queue:
+            request = self._queue.popleft()
+            if isinstance(request, ExceptionResponse):
+                self.server_send(request, None)  # type: ignore[no-untyped-call]
+            else:
+                self.last_pdu, self.last_addr = request, None
+                await self.handle_request()  # type: ignore[no-untyped-call]
+            if self._paused and len(self._queue) < MAX_QUEUED // 2:
+                self._paused = False
+                self._reading(True)
+
+    def _reading(self, on: bool) -> None:
+        """Pause / resume reading the socket (back-pressure while requests are queued)."""
+        transport = self.transport
+        if isinstance(transport, asyncio.ReadTransport) and not transport.is_closing():
+            if on:
+                transport.resume_reading()
+            else:
+                transport.pause_reading()
+
+
+class _Server(ModbusTcpServer):
+    """pymodbus' TCP server with our connection class."""
+
+    def callback_new_connection(self) -> _Connection:
+        return _Connection(self)
 
 
 @dataclass
@@ -189,7 +303,7 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
     """
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
-    server = ModbusTcpServer(adapter.device(), address=(host, port), trace_packet=adapter.trace_packet)
+    server = _Server(adapter.device(), address=(host, port))
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
         ctl.close()

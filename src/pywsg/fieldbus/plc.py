@@ -6,6 +6,8 @@
   the result. Units: mm, mm/s, N.
 - :class:`GrippingCycle` is the SCL demo of 002 Appendix D (states −1..10) ported to Python as a
   sans-IO scan function: ``step(inputs, now) -> outputs``; ``wsg plc-demo`` runs it over Modbus/TCP.
+  It reads the input bytes through :class:`WsgReceive`, the listing's ``WSG_RECEIVE`` struct mapped
+  as an S7 PLC maps it (``receive.STW1.IDLE``, ``receive.SYSSTATE.REFERENCED``).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any, TypeVar
 
 from pymodbus.client import AsyncModbusTcpClient
 
-from ..protocol import GripperState, GState, Status, SystemFlag
+from ..protocol import GState, Status, SystemFlag
 from .image import INPUT_REGISTERS, CmdFlag, InputImage, OutputImage, force_scale
 
 T = TypeVar("T")
@@ -321,6 +323,55 @@ STEP_TEXT = {
 }
 
 
+# TYPE "WSG_RECEIVE" of the listing (002 Appendix D, lines 5..65): names exactly as declared.
+STW1_BOOLS = ("IDLE", "GRASPING", "NO_PART", "PART_LOST", "HOLDING", "RELEASING", "POSITIONING", "ERROR",
+              "OF1", "OF2", "OF3", "OF4", "OF5", "OF6", "OF7", "OF8")
+SYSSTATE_BOOLS = ("REFERENCED", "MOVING", "BLOCKED_MINUS", "BLOCKED_PLUS", "SOFT_LIMIT_MINUS", "SOFT_LIMIT_PLUS",
+                  "AXIS_STOPPED", "TARGET_POS_REACHED", "OVERDRIVE_MODE", "FORCECNTL_MODE", "RES10", "RES11",
+                  "FAST_STOP", "TEMP_WARNING", "TEMP_FAULT", "POWER_FAULT", "CURR_FAULT", "FINGER_FAULT",
+                  "CMD_FAILURE", "SCRIPT_RUN", "SCRIPT_FAILURE", *(f"RES{n}" for n in range(21, 32)))
+
+
+class SclBools:
+    """An SCL ``Struct`` of ``Bool`` over a byte block, as an S7 PLC maps it: the k-th Bool is
+    byte k // 8, bit k % 8. Read the members by name: ``receive.SYSSTATE.REFERENCED``."""
+
+    def __init__(self, names: tuple[str, ...], block: bytes) -> None:
+        if len(block) * 8 != len(names):
+            raise ValueError(f"{len(names)} Bools need {len(names) // 8} bytes, got {len(block)}")
+        self._bits = {name: bool(block[k // 8] >> (k % 8) & 1) for k, name in enumerate(names)}
+
+    def __getattr__(self, name: str) -> bool:
+        try:
+            return self.__dict__["_bits"][name]  # type: ignore[no-any-return]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def on(self) -> list[str]:
+        """The names of the members that are true."""
+        return [name for name, value in self._bits.items() if value]
+
+
+@dataclass(frozen=True)
+class WsgReceive:
+    """``WSG_RECEIVE``: the 12 input bytes as the listing's PLC sees them (Int/UInt big-endian)."""
+
+    STW1: SclBools
+    SYSSTATE: SclBools
+    WIDTH: int
+    FORCE: int
+    ERROR_CODE: int
+
+    @classmethod
+    def from_bytes(cls, data: bytes) -> WsgReceive:
+        """Map the 12 received bytes onto the struct."""
+        if len(data) != 12:
+            raise ValueError(f"WSG_RECEIVE is 12 bytes, got {len(data)}")
+        return cls(SclBools(STW1_BOOLS, data[0:2]), SclBools(SYSSTATE_BOOLS, data[2:6]),
+                   int.from_bytes(data[6:8], "big", signed=True), int.from_bytes(data[8:10], "big"),
+                   int.from_bytes(data[10:12], "big"))
+
+
 @dataclass
 class GrippingCycle:
     """The SCL ``GrippingCycle`` function block. Call :meth:`step` once per PLC scan.
@@ -349,17 +400,19 @@ class GrippingCycle:
         if self.log is not None:
             self.log(text)
 
-    def step(self, receive: InputImage, now: float) -> OutputImage:
-        """One scan: read ``receive``, run the CASE, return the outputs to write."""
-        gs = receive.gstate
+    def step(self, receive: InputImage | WsgReceive, now: float) -> OutputImage:
+        """One scan: read ``receive`` (as ``WSG_RECEIVE``), run the CASE, return the outputs to write."""
+        rcv = receive if isinstance(receive, WsgReceive) else WsgReceive.from_bytes(receive.pack())
+        stw1, sysstate = rcv.STW1, rcv.SYSSTATE
         cfg = self.config
         timer_expired = self.timer_due is not None and now >= self.timer_due
         do_next = False
         state = self.state
-        error = bool(gs & GState.ERROR)
+        error = stw1.ERROR
+        ok = rcv.ERROR_CODE == Status.E_SUCCESS
         # Port addition: a command the gripper refused leaves it IDLE with an error STATUS CODE; the
         # steps waiting for a running state treat that like ERROR instead of waiting forever.
-        refused = bool(gs & GState.IDLE) and receive.status not in (Status.E_SUCCESS, Status.E_CMD_PENDING)
+        refused = stw1.IDLE and rcv.ERROR_CODE not in (Status.E_SUCCESS, Status.E_CMD_PENDING)
 
         if state == -1:
             self.error_count += 1
@@ -367,7 +420,7 @@ class GrippingCycle:
                       | CmdFlag.JOG_MINUS | CmdFlag.JOG_PLUS | CmdFlag.MOVE | CmdFlag.RELEASE)
             do_next = True
         elif state == 0:
-            if not gs & GState.IDLE:
+            if not stw1.IDLE:
                 self.state = -1
             else:
                 self._set(on=CmdFlag.HOMING, off=CmdFlag.STOP_ACK)
@@ -376,54 +429,53 @@ class GrippingCycle:
             if error or refused:
                 self.state = -1
             # POSITIONING while homing; IDLE and REFERENCED if homing finished between two scans.
-            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS
-                                           and receive.sysstate & SystemFlag.SF_REFERENCED):
+            if stw1.POSITIONING or (stw1.IDLE and ok and sysstate.REFERENCED):
                 self._set(off=CmdFlag.HOMING)
                 do_next = True
         elif state == 2:
             if error:
                 self.state = -1
-            if gs & GState.IDLE:
-                if not receive.sysstate & SystemFlag.SF_REFERENCED:
+            if stw1.IDLE:
+                if not sysstate.REFERENCED:
                     self.state = -1
                 else:
                     do_next = True
         elif state == 3:
             if error:
                 self.state = -1
-            if gs & GState.IDLE:
+            if stw1.IDLE:
                 self._set(on=CmdFlag.MOVE, width=cfg.prepos_width, speed=cfg.prepos_speed,
                           force_limit=cfg.prepos_force)
                 do_next = True
         elif state == 4:
             if error or refused:
                 self.state = -1
-            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+            if stw1.POSITIONING or (stw1.IDLE and ok):
                 self._set(off=CmdFlag.MOVE)
                 do_next = True
         elif state == 5:
             if error:
                 self.state = -1
-            if gs & GState.IDLE:
+            if stw1.IDLE:
                 self._set(on=CmdFlag.GRIP, width=cfg.grasp_width, speed=cfg.grasp_speed,
                           force_limit=cfg.grasp_force)
                 do_next = True
         elif state == 6:
             if error or refused:
                 self.state = -1
-            if gs & (GState.GRIPPING | GState.HOLDING | GState.NO_PART | GState.PART_LOST):
+            if stw1.GRASPING or stw1.HOLDING or stw1.NO_PART or stw1.PART_LOST:
                 self._set(off=CmdFlag.GRIP)
                 do_next = True
         elif state == 7:
             if error:
                 self.state = -1
-            if gs & GState.HOLDING and not self.holding_active:
+            if stw1.HOLDING and not self.holding_active:
                 self.holding_active = True
                 self.holds += 1
                 self.timer_due = now + cfg.holding_time
                 timer_expired = False
-            if timer_expired or gs & (GState.NO_PART | GState.PART_LOST):
-                if gs & GState.NO_PART:
+            if timer_expired or stw1.NO_PART or stw1.PART_LOST:
+                if stw1.NO_PART:
                     self.no_part += 1
                 self.holding_active = False
                 self.timer_due = None
@@ -433,26 +485,26 @@ class GrippingCycle:
         elif state == 8:
             if error or refused:
                 self.state = -1
-            if gs & GState.RELEASING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+            if stw1.RELEASING or (stw1.IDLE and ok):
                 self._set(off=CmdFlag.RELEASE)
                 do_next = True
         elif state == 9:
             if error:
                 self.state = -1
-            if gs & GState.IDLE:
+            if stw1.IDLE:
                 self._set(on=CmdFlag.MOVE, width=cfg.start_width, speed=cfg.start_speed,
                           force_limit=cfg.start_force)
                 do_next = True
         elif state == 10:
             if error or refused:
                 self.state = -1
-            if gs & GState.POSITIONING or (gs & GState.IDLE and receive.status == Status.E_SUCCESS):
+            if stw1.POSITIONING or (stw1.IDLE and ok):
                 self._set(off=CmdFlag.MOVE)
                 do_next = True
         else:  # default: state not in -1..10
             if error:
                 self.state = -1
-            if gs & GState.IDLE:
+            if stw1.IDLE:
                 self.state = 3
                 self.cycles += 1
 
@@ -460,7 +512,7 @@ class GrippingCycle:
             self.state += 1
         if self.state != state:
             self._say(f"step {state:>2} -> {self.state:>2}: {STEP_TEXT.get(self.state, 'default branch')}"
-                      f"  [{_gstate_name(gs)}, {_status_name(receive.status)}]")
+                      f"  [{_gstate_name(stw1)}, {_status_name(rcv.ERROR_CODE)}]")
         return self.send
 
 
@@ -471,8 +523,7 @@ def _status_name(code: int) -> str:
         return str(code)
 
 
-def _gstate_name(gs: GState) -> str:
-    value = int(gs)
-    if value and value & (value - 1) == 0:
-        return GripperState(value.bit_length() - 1).name
-    return f"GSTATE={value:02X}h"
+def _gstate_name(stw1: SclBools) -> str:
+    """The gripper state named in STW1 (one-hot), as the listing spells it (GRASPING for GRIPPING)."""
+    states = [name for name in STW1_BOOLS[:8] if getattr(stw1, name)]
+    return states[0] if len(states) == 1 else f"GSTATE={'+'.join(states) or '0'}"

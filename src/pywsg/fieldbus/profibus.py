@@ -12,7 +12,7 @@ bytes    content
 0..3     standard diagnostic data: station status 1..3, master address (PROFIBUS DP)
 4..5     slave ident number 5555h
 6        length of the device-related diagnosis: 0Ah (10 bytes, this byte included)
-7..10    SYSSTATE, same coding as input bytes 2..5 (big-endian, see image.py)
+7..10    SYSSTATE, same coding as input bytes 2..5: flag bit n in byte 7 + n // 8, bit n % 8
 11..15   reserved, 0
 =======  ==========================================================================
 """
@@ -23,7 +23,7 @@ import struct
 from dataclasses import dataclass, field
 
 from ..protocol import SystemFlag
-from .image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage
+from .image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage, sysstate_bytes, sysstate_from_bytes
 
 IDENT_NUMBER = 0x5555
 DIAGNOSIS_LENGTH = 0x0A
@@ -41,7 +41,8 @@ DIAGNOSIS_FLAGS = (
 # is fixed to 1 by the PROFIBUS DP standard.
 _STATUS1_EXT_DIAG = 0x08
 _STATUS2_FIXED = 0x04
-_DIAG = struct.Struct(">BBBBHBI5x")
+# Slave ident big-endian (PROFIBUS), SYSSTATE in the image's bit order ("same coding as SYSSTATE", 002 §3.3).
+_DIAG = struct.Struct(">BBBBHB4s5x")
 
 
 def diagnosis_message(sysstate: SystemFlag | int, master_address: int = 2) -> bytes:
@@ -53,7 +54,7 @@ def diagnosis_message(sysstate: SystemFlag | int, master_address: int = 2) -> by
     if not 0 <= master_address <= 0xFF:
         raise ValueError("master address is one byte")
     return _DIAG.pack(_STATUS1_EXT_DIAG, _STATUS2_FIXED, 0, master_address, IDENT_NUMBER, DIAGNOSIS_LENGTH,
-                      int(sysstate) & 0xFFFFFFFF)
+                      sysstate_bytes(sysstate))
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,7 @@ def parse_diagnosis(data: bytes) -> Diagnosis:
     s1, s2, s3, master, ident, length, sysstate = _DIAG.unpack(data)
     if ident != IDENT_NUMBER or length != DIAGNOSIS_LENGTH:
         raise ValueError(f"not a WSG diagnosis message (ident {ident:04X}h, length {length:02X}h)")
-    return Diagnosis((s1, s2, s3), master, ident, length, SystemFlag(sysstate))
+    return Diagnosis((s1, s2, s3), master, ident, length, sysstate_from_bytes(sysstate))
 
 
 def raised_flags(previous: SystemFlag | int, current: SystemFlag | int) -> SystemFlag:

@@ -252,6 +252,8 @@ def _auto_update_request() -> tuple[Field, ...]:
 
 _F = Status
 _MOTION_IMMEDIATE = (_F.E_ACCESS_DENIED, _F.E_ALREADY_RUNNING, _F.E_CMD_FORMAT_ERROR, _F.E_CMD_PENDING)
+# pywsg adds E_INVALID_PARAMETER: PERIOD_MS below the manual's minimum of 10 ms
+_AUTO_UPDATE_STATUSES = (_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_INVALID_PARAMETER)
 
 
 def _finger_commands(n: int, base: int) -> list[CommandSpec]:
@@ -277,7 +279,10 @@ def _finger_commands(n: int, base: int) -> list[CommandSpec]:
             "then E_SUCCESS after about 500 ms.",
             request=(Field("power", "u8", "", "0: off, 1: on"),),
             kind=Kind.PENDING_WHEN_ON,
-            statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_CMD_FAILED, _F.E_CMD_PENDING),
+            # pywsg adds: E_INVALID_PARAMETER (ON/OFF not 0 or 1), E_ACCESS_DENIED (a predefined finger "can
+            # not be activated or deactivated"), E_ALREADY_RUNNING (still powering up)
+            statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_CMD_FAILED, _F.E_CMD_PENDING,
+                      _F.E_INVALID_PARAMETER, _F.E_ACCESS_DENIED, _F.E_ALREADY_RUNNING),
         ),
         CommandSpec(
             base + 3, f"GET_FINGER{n}_DATA", f"Get Finger {n} Data", f"3.6.{4 + 4 * (n - 1)}",
@@ -318,7 +323,8 @@ _SPECS: list[CommandSpec] = [
         ),
         kind=Kind.PENDING, motion=True,
         statuses=(*_MOTION_IMMEDIATE, _F.E_NOT_INITIALIZED, _F.E_RANGE_ERROR, _F.E_SUCCESS,
-                  _F.E_INSUFFICIENT_RESOURCES, _F.E_AXIS_BLOCKED, _F.E_TIMEOUT, _F.E_CMD_ABORTED),
+                  _F.E_INSUFFICIENT_RESOURCES, _F.E_AXIS_BLOCKED, _F.E_TIMEOUT, _F.E_CMD_ABORTED,
+                  _F.E_INVALID_PARAMETER),  # pywsg adds E_INVALID_PARAMETER: a NaN or infinite WIDTH/SPEED
     ),
     CommandSpec(
         Command.STOP, "STOP", "Stop", "3.2.3", "Stop any finger movement; sets SF_AXIS_STOPPED.",
@@ -333,7 +339,9 @@ _SPECS: list[CommandSpec] = [
         Command.ACK_FAST_STOP, "ACK_FAST_STOP", "Acknowledge FAST STOP", "3.2.5",
         "Acknowledge a FAST STOP or fault condition with the key \"ack\".",
         request=(Field("key", "str", "", "the letters \"ack\"", max_len=3),),
-        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        # pywsg adds E_ACCESS_DENIED: a power or current fault persists (App. B D16/D17: the FAST STOP
+        # can be acknowledged only once the fault has cleared)
+        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_ACCESS_DENIED),
     ),
     CommandSpec(
         Command.GRIP_PART, "GRIP_PART", "Grip Part", "3.2.6",
@@ -341,20 +349,21 @@ _SPECS: list[CommandSpec] = [
         request=(Field("width", "f32", "mm", "nominal part width"), Field("speed", "f32", "mm/s", "gripping speed")),
         kind=Kind.PENDING, motion=True,
         statuses=(*_MOTION_IMMEDIATE, _F.E_RANGE_ERROR, _F.E_SUCCESS, _F.E_CMD_ABORTED, _F.E_CMD_FAILED,
-                  _F.E_TIMEOUT),
+                  _F.E_TIMEOUT, _F.E_NOT_INITIALIZED, _F.E_INVALID_PARAMETER),  # pywsg adds the last two
     ),
     CommandSpec(
         Command.RELEASE_PART, "RELEASE_PART", "Release Part", "3.2.7",
         "Release a gripped part by opening to an absolute width.",
         request=(Field("width", "f32", "mm", "opening width"), Field("speed", "f32", "mm/s", "opening speed")),
         kind=Kind.PENDING, motion=True,
-        statuses=(*_MOTION_IMMEDIATE, _F.E_RANGE_ERROR, _F.E_SUCCESS, _F.E_CMD_ABORTED, _F.E_TIMEOUT),
+        statuses=(*_MOTION_IMMEDIATE, _F.E_RANGE_ERROR, _F.E_SUCCESS, _F.E_CMD_ABORTED, _F.E_TIMEOUT,
+                  _F.E_NOT_INITIALIZED, _F.E_INVALID_PARAMETER),  # pywsg adds the last two
     ),
     CommandSpec(
         Command.SET_ACCELERATION, "SET_ACCELERATION", "Set Acceleration", "3.3.1",
         "Acceleration for following motions (clamped to the device limits; session only).",
         request=(Field("acceleration", "f32", "mm/s²", "acceleration"),),
-        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_INVALID_PARAMETER),  # pywsg adds E_INVALID_PARAMETER
     ),
     CommandSpec(
         Command.GET_ACCELERATION, "GET_ACCELERATION", "Get Acceleration", "3.3.2", "The set acceleration.",
@@ -365,7 +374,7 @@ _SPECS: list[CommandSpec] = [
         Command.SET_FORCE_LIMIT, "SET_FORCE_LIMIT", "Set Force Limit", "3.3.3",
         "Gripping force limit (clamped to minimum and nominal, or overdrive, force; session only).",
         request=(Field("force", "f32", "N", "force limit"),),
-        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_INVALID_PARAMETER),  # pywsg adds E_INVALID_PARAMETER
     ),
     CommandSpec(
         Command.GET_FORCE_LIMIT, "GET_FORCE_LIMIT", "Get Force Limit", "3.3.4", "The set force limit.",
@@ -377,7 +386,7 @@ _SPECS: list[CommandSpec] = [
         "Soft limits in minus and plus direction (session only).",
         request=(Field("minus", "f32", "mm", "soft limit in negative direction"),
                  Field("plus", "f32", "mm", "soft limit in positive direction")),
-        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_INVALID_PARAMETER),  # pywsg adds E_INVALID_PARAMETER
     ),
     CommandSpec(
         Command.GET_SOFT_LIMITS, "GET_SOFT_LIMITS", "Get Soft Limits", "3.3.6",
@@ -394,7 +403,7 @@ _SPECS: list[CommandSpec] = [
         Command.OVERDRIVE_MODE, "OVERDRIVE_MODE", "Overdrive Mode", "3.3.8",
         "Enable or disable force overdrive (force limit up to the overdrive force).",
         request=(Field("flags", "u8", "", "D0: 1 enable, 0 disable"),),
-        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR, _F.E_INVALID_PARAMETER),  # pywsg adds E_INVALID_PARAMETER
     ),
     CommandSpec(
         Command.TARE_FORCE_SENSOR, "TARE_FORCE_SENSOR", "Tare Force Sensor", "3.3.9",
@@ -406,14 +415,14 @@ _SPECS: list[CommandSpec] = [
         "System state flags (Appendix B); auto-update capable.",
         request=_auto_update_request(),
         reply=(Field("state", "u32", "", "system state flags", SystemFlag),),
-        auto_update=True, statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        auto_update=True, statuses=_AUTO_UPDATE_STATUSES,
     ),
     CommandSpec(
         Command.GET_GRIPPER_STATE, "GET_GRIPPER_STATE", "Get Gripper State", "3.4.2",
         "Grasping state (0 IDLE .. 7 ERROR); auto-update capable.",
         request=_auto_update_request(),
         reply=(Field("state", "u8", "", "grasping state", GripperState),),
-        auto_update=True, statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        auto_update=True, statuses=_AUTO_UPDATE_STATUSES,
     ),
     CommandSpec(
         Command.GET_GRIPPING_STATISTICS, "GET_GRIPPING_STATISTICS", "Get Gripping Statistics", "3.4.3",
@@ -427,19 +436,19 @@ _SPECS: list[CommandSpec] = [
         Command.GET_OPENING_WIDTH, "GET_OPENING_WIDTH", "Get Opening Width", "3.4.4",
         "Finger opening width; auto-update capable (change: 0.01 mm).",
         request=_auto_update_request(), reply=(Field("width", "f32", "mm", "opening width"),),
-        auto_update=True, statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        auto_update=True, statuses=_AUTO_UPDATE_STATUSES,
     ),
     CommandSpec(
         Command.GET_SPEED, "GET_SPEED", "Get Speed", "3.4.5",
         "Relative finger speed; auto-update capable (change: 0.05 mm/s).",
         request=_auto_update_request(), reply=(Field("speed", "f32", "mm/s", "finger speed"),),
-        auto_update=True, statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        auto_update=True, statuses=_AUTO_UPDATE_STATUSES,
     ),
     CommandSpec(
         Command.GET_FORCE, "GET_FORCE", "Get Force", "3.4.6",
         "Gripping force; auto-update capable (change: 0.05 N).",
         request=_auto_update_request(), reply=(Field("force", "f32", "N", "gripping force"),),
-        auto_update=True, statuses=(_F.E_SUCCESS, _F.E_CMD_FORMAT_ERROR),
+        auto_update=True, statuses=_AUTO_UPDATE_STATUSES,
     ),
     CommandSpec(
         Command.GET_TEMPERATURE, "GET_TEMPERATURE", "Get Temperature", "3.4.7", "Device temperature.",

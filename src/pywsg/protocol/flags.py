@@ -4,8 +4,34 @@ from __future__ import annotations
 
 from enum import IntEnum, IntFlag
 
+__all__ = ["AutoUpdateFlag", "DeviceType", "FingerFlag", "FingerType", "GState", "GripperState", "HomingDirection",
+           "NamedFlag", "PrepositionFlag", "SystemFlag"]
 
-class SystemFlag(IntFlag):
+
+class NamedFlag(IntFlag):
+    """An IntFlag that prints its flag names: ``SF_REFERENCED|SF_CMD_FAILURE``, not ``262145``.
+
+    Python 3.11 prints IntFlag members as plain numbers; people reading ``print(flags)`` want names.
+    Format specs still work on the number (``f"{flags:#x}"`` gives ``0x40001``).
+    """
+
+    def __str__(self) -> str:
+        value = int(self)
+        names = [m.name for m in type(self) if m.name and m.value and m.value & (m.value - 1) == 0
+                 and value & m.value]
+        rest = value & ~sum(int(m.value) for m in type(self) if m.value and m.value & (m.value - 1) == 0)
+        if rest:
+            names.append(hex(rest))
+        if names:
+            return "|".join(names)
+        zero = next((n for n, m in type(self).__members__.items() if m.value == 0), None)
+        return zero or "0"
+
+    def __format__(self, spec: str) -> str:
+        return str(self) if not spec else int.__format__(int(self), spec)
+
+
+class SystemFlag(NamedFlag):
     """System state flags, 32 bits (Appendix B). Read with 40h Get System State."""
 
     NONE = 0
@@ -47,7 +73,7 @@ class GripperState(IntEnum):
     ERROR = 7
 
 
-class GState(IntFlag):
+class GState(NamedFlag):
     """Fieldbus GSTATE byte: the gripper state as one-hot bits (fieldbus manual, input byte 0)."""
 
     IDLE = 1 << 0
@@ -92,7 +118,7 @@ class FingerType(IntEnum):
     WSG_DSA = 2
 
 
-class FingerFlag(IntFlag):
+class FingerFlag(NamedFlag):
     """61h/71h finger flags (16 bits)."""
 
     NONE = 0
@@ -103,7 +129,7 @@ class FingerFlag(IntFlag):
     COMM_FAULT = 1 << 9
 
 
-class PrepositionFlag(IntFlag):
+class PrepositionFlag(NamedFlag):
     """21h Pre-position FLAGS byte."""
 
     ABSOLUTE = 0
@@ -111,7 +137,7 @@ class PrepositionFlag(IntFlag):
     STOP_ON_BLOCK = 1 << 1
 
 
-class AutoUpdateFlag(IntFlag):
+class AutoUpdateFlag(NamedFlag):
     """FLAGS byte of 40h, 41h, 43h, 44h, 45h."""
 
     NONE = 0

@@ -40,6 +40,9 @@ class Status(IntEnum):
     E_AXIS_BLOCKED = 29
     E_FILE_EXISTS = 30
 
+    def __str__(self) -> str:  # print(status) -> E_ACCESS_DENIED, not 16 (IntEnum prints the number)
+        return self.name
+
     @property
     def description(self) -> str:
         """The manual's one-line meaning of this status code."""

@@ -1,10 +1,15 @@
-"""CAN command interface — **inferred**: the WSG manuals do not specify a CAN mapping.
+"""CAN command interface — **inferred**: the WSG manuals name CAN (000 §1.1) but do not specify a mapping.
 
-Design (as one public driver does it): the ordinary binary protocol byte stream is cut into CAN
-frames of up to 8 data bytes. Requests arrive on ``rx_id`` (default 01h), replies and auto-updates
-leave on ``tx_id`` (default 02h), standard 11-bit IDs. The device parser reassembles frames across
-CAN frames exactly as on a serial line. Needs python-can (``pywsg[can]``); tests use its
-``virtual`` interface.
+Design (as a public ROS driver, TRI's ``schunk_wsg_driver`` ``WSGCANInterface``, does it): the
+ordinary binary protocol byte stream is cut into CAN data frames of up to 8 bytes, all but the last
+full. Requests arrive on ``rx_id`` (default 01h), replies and auto-updates leave on ``tx_id``
+(default 02h = ``rx_id`` + 1 in that driver), standard 11-bit IDs. The device parser reassembles
+frames across CAN frames exactly as on a serial line (length from the header, CRC checked); a lost
+or reordered fragment fails the CRC (answered E_CHECKSUM_ERROR like any corrupt frame) and the
+parser resynchronises on the next preamble. Other identifiers, remote and error frames are ignored
+(acceptance filter on the bus, checked again per frame). The driver side is
+:mod:`pywsg.client.can_transport`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
+interface.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ class CanServer:
         self.rx_id = rx_id
         self.tx_id = tx_id
         self.bitrate = bitrate
+        self.foreign = 0  # CAN frames ignored: another identifier, remote or error frames
         self.session: Any = None
         self._bus: Any = None
         self._notifier: Any = None
@@ -50,7 +56,8 @@ class CanServer:
         except ImportError as exc:  # optional extra
             raise RuntimeError("CAN needs python-can: pip install 'pywsg[can]'") from exc
         loop = asyncio.get_running_loop()
-        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
+        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel,
+                                  "can_filters": [{"can_id": self.rx_id, "can_mask": 0x7FF, "extended": False}]}
         if self.interface != "virtual":
             kwargs["bitrate"] = self.bitrate
         self._bus = can.Bus(**kwargs)
@@ -63,7 +70,9 @@ class CanServer:
         return f"can://{self.interface}/{self.channel}?rx_id=0x{self.rx_id:X}&tx_id=0x{self.tx_id:X} (inferred)"
 
     def _on_message(self, msg: Any) -> None:
-        if msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame:
+        if (msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame
+                or msg.is_extended_id):
+            self.foreign += 1
             return
         replies = self.gripper.feed(self.session, bytes(msg.data))
         for frame in replies:

@@ -336,8 +336,10 @@ async def run_sim(
     options: SimOptions,
     stop: asyncio.Event | None = None,
     echo: Callable[[str], None] = print,
+    on_start: Callable[[SimServer], None] | None = None,
 ) -> SimServer:
-    """Run until ``stop`` is set or SIGINT/SIGTERM arrives; prints one line per interface."""
+    """Run until ``stop`` is set or SIGINT/SIGTERM arrives; prints one line per interface.
+    ``on_start(sim)`` runs on the loop once every interface is up (world set-up, scenarios)."""
     import signal
 
     stop = stop or asyncio.Event()
@@ -352,6 +354,8 @@ async def run_sim(
     sim = SimServer(options)
     try:
         await sim.start()
+        if on_start is not None:
+            on_start(sim)
         for line in sim.lines():
             echo(line)
         await stop.wait()

@@ -35,7 +35,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from . import api, auth, device_api, live, pages, sim_api
+from . import api, auth, device_api, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -100,6 +100,7 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     auth.install_guard(app, ctx, bound=host, allowed_hosts=allowed_hosts)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
+    app.include_router(world_api.router)  # world control for scripts (wsg world, curl, pywsg.testing)
     return app
 
 

@@ -25,6 +25,7 @@ from starlette.datastructures import Headers
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from . import world_api
 from .context import MAX_BODY, WebContext, error
 from .pages import template
 from .security import COOKIE_NAME, CSRF_FIELD, CSRF_HEADER, WebSession
@@ -155,6 +156,8 @@ def install_guard(app: FastAPI, ctx: WebContext, *, bound: str | None = None,
     async def _check(request: Request, s: WebSession,
                      call_next: Callable[[Request], Awaitable[Response]]) -> Response:
         path = request.url.path
+        if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules (world_api.guard)
+            return world_api.guard(request, ctx.auth) or await call_next(request)
         public = path.startswith("/static/") or path == "/login"
         if not public and not ctx.auth.may_read(s):
             if path.startswith("/api/") or request.method not in SAFE_METHODS:

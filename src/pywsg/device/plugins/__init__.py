@@ -14,7 +14,7 @@ any plugin runs.
 
 from __future__ import annotations
 
-from .base import FirmwarePlugin, MirrorPlugin
+from .base import FirmwarePlugin, MirrorPlugin, ScriptHost
 from .ros_measure import RosMeasurePlugin
 from .umi_measure import UmiMeasurePlugin
 
@@ -24,4 +24,4 @@ PLUGINS: dict[str, type[FirmwarePlugin]] = {
     MirrorPlugin.name: MirrorPlugin,
 }
 
-__all__ = ["PLUGINS", "FirmwarePlugin", "MirrorPlugin", "RosMeasurePlugin", "UmiMeasurePlugin"]
+__all__ = ["PLUGINS", "FirmwarePlugin", "MirrorPlugin", "RosMeasurePlugin", "ScriptHost", "UmiMeasurePlugin"]

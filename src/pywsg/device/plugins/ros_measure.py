@@ -10,50 +10,54 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import TYPE_CHECKING
 
 from ...protocol import FingerType, Frame, Status
-from .base import FirmwarePlugin
-
-if TYPE_CHECKING:
-    from ..gripper import VirtualGripper
-    from ..session import Session
+from ..session import Session
+from .base import FirmwarePlugin, ScriptHost
 
 REQUEST = struct.Struct("<Bff")
 REPLY = struct.Struct("<B5f")
 
 
+SPEED_STOP_WIDTH = 50.0  # mm: the script's fixed threshold ("pos <= 50" / "pos >= 50")
+
+
 class RosMeasurePlugin(FirmwarePlugin):
+    """``cmd_measure.lua``: per request, measure (busy, blocked, position), act, then reply."""
+
     name = "ros_measure"
     commands = (0xB0, 0xB1, 0xB2)
 
     def __init__(self) -> None:
-        self.speed_mode = False
-        self.speed = 0.0
+        self.speed_mode = False  # the script's is_speed
+        self.speed = 5.0  # the script's def_speed (mm/s), 5 at start
 
-    def handle(self, gripper: VirtualGripper, session: Session, command_id: int, payload: bytes,
+    def handle(self, gripper: ScriptHost, session: Session, command_id: int, payload: bytes,
                now: float) -> Frame:
-        if command_id in (0xB1, 0xB2):
-            if len(payload) < REQUEST.size:
-                return Frame.reply(command_id, Status.E_CMD_FORMAT_ERROR)
+        if command_id in (0xB1, 0xB2) and len(payload) < REQUEST.size:
+            return Frame.reply(command_id, Status.E_CMD_FORMAT_ERROR)
+        # ==== Measurements (1): before the command, as the script reads them
+        blocked = gripper.blocked()
+        pos = gripper.width(now)
+        if command_id == 0xB1:
             _, width, speed = REQUEST.unpack_from(payload)
-            if command_id == 0xB1:
-                self.speed_mode = False
-                if gripper.moving(now):
-                    gripper.script_stop()
-                gripper.script_move(width, abs(speed))
-            else:
-                self.speed_mode = True
-                self.speed = speed
-                gripper.script_speed(speed)
-        # the script stops a speed motion that ran into a block
-        if self.speed_mode and gripper.blocked():
-            gripper.script_stop()
+            # "if busy then mc.stop(); end; mc.move(...)" in one tick: the move takes over from the current
+            # speed (a drive does not stop in zero time); B1h leaves is_speed as it is
+            gripper.script_move(width, abs(speed), now)
+        elif command_id == 0xB2:
+            _, _, speed = REQUEST.unpack_from(payload)
+            self.speed_mode = True
+            self.speed = speed
+            gripper.script_speed(speed, now=now)
+        # ==== Actions: stop a speed motion blocked closing at <= 50 mm or opening at >= 50 mm
+        if blocked and self.speed_mode and (
+                (pos <= SPEED_STOP_WIDTH and self.speed < 0) or (pos >= SPEED_STOP_WIDTH and self.speed > 0)):
+            gripper.script_stop(now)
             self.speed_mode = False
         return Frame.reply(command_id, Status.E_SUCCESS, measure(gripper, now))
 
 
-def measure(gripper: VirtualGripper, now: float) -> bytes:
+def measure(gripper: ScriptHost, now: float) -> bytes:
     state = int(gripper.system_flags(now)) & 0xFF  # "Only the lowest byte of state is sent!"
     forces = [math.nan, math.nan]
     force = gripper.force(now)

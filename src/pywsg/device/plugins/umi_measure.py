@@ -10,14 +10,10 @@ of the system state), 4 float32: position (mm), speed (mm/s), motor force (N), t
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING
 
 from ...protocol import Frame, Status
-from .base import FirmwarePlugin
-
-if TYPE_CHECKING:
-    from ..gripper import VirtualGripper
-    from ..session import Session
+from ..session import Session
+from .base import FirmwarePlugin, ScriptHost
 
 REQUEST = struct.Struct("<B6f")
 REPLY = struct.Struct("<B4f")
@@ -27,7 +23,7 @@ class UmiMeasurePlugin(FirmwarePlugin):
     name = "umi_measure"
     commands = (0xB0, 0xB1)
 
-    def handle(self, gripper: VirtualGripper, session: Session, command_id: int, payload: bytes,
+    def handle(self, gripper: ScriptHost, session: Session, command_id: int, payload: bytes,
                now: float) -> Frame:
         if command_id == 0xB1:
             if len(payload) < REQUEST.size:
@@ -37,7 +33,7 @@ class UmiMeasurePlugin(FirmwarePlugin):
             vel = gripper.speed(now)
             act_vel = kp * (pos_cmd - pos) + kd * (vel_cmd - vel)
             force = blocked_force if gripper.blocked() else travel_force
-            gripper.script_speed(act_vel, force=force)
+            gripper.script_speed(act_vel, force=force, now=now)  # one clock reading per request
         state = int(gripper.system_flags(now)) & 0xFF
         return Frame.reply(command_id, Status.E_SUCCESS,
                            REPLY.pack(state, gripper.width(now), gripper.speed(now), gripper.force(now), now))

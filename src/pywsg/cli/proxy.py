@@ -1,0 +1,96 @@
+"""``wsg proxy``: a transparent tap between any client and any WSG, with a decoded line per frame."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import signal
+import sys
+from pathlib import Path
+
+import click
+
+
+@click.command("proxy")
+@click.option("--listen", "listen", required=True, metavar="[HOST:]PORT",
+              help="Where clients connect instead of the gripper (default host 127.0.0.1; 0: any free port).")
+@click.option("--to", "target", required=True, metavar="URL",
+              help="The gripper: tcp://HOST[:1000] or udp://HOST[:1500][?reply_port=1501].")
+@click.option("--pcap", "pcap", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the exchange as pcapng (wsg decode -f, wsg replay, Wireshark read it).")
+@click.option("--jsonl", "jsonl", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write one JSON object per frame (wsg log and wsg replay read it).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON lines instead of text lines.")
+@click.option("-q", "--quiet", is_flag=True, help="Print nothing per frame (files only).")
+@click.pass_context
+def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl: Path | None,
+          as_json: bool, quiet: bool) -> None:
+    """Forward a client's traffic to a gripper unchanged and show every frame.
+
+    Point your own client (ROS node, PLC, script) at the --listen port instead of the gripper. Bytes
+    are forwarded unchanged and in order; each complete frame prints one line: time, TX (client to
+    gripper) or RX, command ID and name, the raw bytes, status and decoded fields. The protocol
+    (TCP or UDP) is the --to URL's. Stops on Ctrl-C or SIGTERM.
+
+    \b
+    Example:
+      wsg proxy --listen 2000 --to tcp://192.168.1.20:1000 --pcap cell.pcapng
+      wsg --url tcp://127.0.0.1:2000 home          # any client, through the tap
+      wsg decode -f cell.pcapng                    # later: the whole exchange
+    """
+    from ..testing.proxy import Proxy
+    from .commlog import CommLog, LogEntry
+
+    host, _, port_text = listen.rpartition(":")
+    try:
+        port = int(port_text)
+        if not 0 <= port <= 65535:
+            raise ValueError
+    except ValueError:
+        raise click.BadParameter(f"{listen!r}: give PORT or HOST:PORT", param_hint="--listen") from None
+    as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json
+    jsonl_file = open(jsonl, "w", encoding="utf-8") if jsonl else None  # noqa: SIM115 - closed below
+    if quiet:
+        log = CommLog(jsonl=jsonl_file)
+    elif as_json:
+        log = CommLog(jsonl=sys.stdout)
+        if jsonl_file is not None:
+            out = jsonl_file
+
+            def to_file(entry: LogEntry) -> None:
+                out.write(json.dumps(entry.to_json(), ensure_ascii=False) + "\n")
+                out.flush()
+
+            log.listeners.append(to_file)
+    else:
+        log = CommLog(text=sys.stdout, jsonl=jsonl_file)
+    try:
+        tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap)
+    except (ValueError, OSError) as exc:
+        raise click.BadParameter(str(exc), param_hint="--to") from None
+
+    async def main() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, stop.set)
+        try:
+            await tap.start()
+        except OSError as exc:
+            raise click.ClickException(f"cannot listen on {listen}: {exc.strerror or exc}") from None
+        click.echo(f"proxy {tap.address} -> {target}", err=True)
+        try:
+            await stop.wait()
+        finally:
+            await tap.close()
+            s = tap.stats
+            click.echo(f"stopped: {s.connections} client(s), {s.frames['tx']} request(s), "
+                       f"{s.frames['rx']} reply frame(s)", err=True)
+
+    try:
+        asyncio.run(main())
+    finally:
+        if jsonl_file is not None:
+            jsonl_file.close()

@@ -1,0 +1,160 @@
+"""What the blocking driver's calls hand back: :class:`Motion` (a running motion, ``wait=False``)
+and :class:`Stream` (auto-update samples)."""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any
+
+from ..errors import TimeoutError
+from ..protocol import Command, Frame, Status
+from .calls import Call
+from .core import raise_for, sample_of, status_of
+from .demux import Sink, Waiter
+from .types import Sample
+
+if TYPE_CHECKING:
+    from .sync import Gripper
+
+
+class Motion:
+    """A running motion (``wait=False``): ``motion.wait(timeout)`` returns None on success and raises
+    the matching :class:`~pywsg.errors.WsgError` otherwise."""
+
+    def __init__(self, gripper: Gripper, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
+        self._gripper = gripper
+        self._call = call
+        self._final = final
+        self._frame = frame
+        self._error: BaseException | None = None
+        self._checked = False
+        self.command = Command(call.command_id)
+        self.started = time.monotonic()
+
+    def done(self) -> bool:
+        """True once the final frame arrived (or the connection failed)."""
+        return self._frame is not None or (self._final is not None and self._final.done)
+
+    @property
+    def status(self) -> Status | int | None:
+        if self._final is not None and self._final.frame is not None:
+            return status_of(self._final.frame)
+        return status_of(self._frame) if self._frame is not None else None
+
+    def wait(self, timeout: float | None = None) -> None:
+        """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
+        if not self._checked:
+            self._settle(self._gripper.motion_timeout if timeout is None else timeout)
+        if self._error is not None:
+            raise self._error
+
+    def _settle(self, timeout: float) -> None:
+        w = self._final
+        if self._frame is None and w is not None:
+            if not w.done:
+                self._gripper._wait_for(w, timeout, abandon=False)
+            if not w.done:
+                raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
+                                   f"motion not finished within {timeout:g} s", from_device=False)
+            if w.error is not None:
+                self._error = w.error
+                self._checked = True
+                return
+            self._frame = w.frame
+        assert self._frame is not None
+        if status_of(self._frame) != Status.E_SUCCESS:
+            self._error = raise_for(self._call, self._frame, self._gripper._flags_quietly())
+        self._checked = True
+
+    def __repr__(self) -> str:
+        return f"<Motion {self.command.name} {'done' if self.done() else 'running'}>"
+
+
+
+class Stream(Sink):
+    """Auto-update samples: iterate (``for s in stream``, blocks), ``get(timeout)``, ``drain()``, or
+    register ``callback``\\s. Keeps up to ``maxlen`` unread samples (older ones counted in ``dropped``)."""
+
+    def __init__(self, gripper: Gripper, command: Command, maxlen: int = 10000,
+                 callback: Callable[[Sample], None] | None = None) -> None:
+        self._gripper = gripper
+        self.command = command
+        self._q: collections.deque[Sample] = collections.deque()
+        self._cv = threading.Condition(threading.Lock())
+        self._maxlen = maxlen
+        self._ended = False
+        self._closed = False
+        self._end: BaseException | None = None
+        self.received = 0
+        self.dropped = 0
+        self.callbacks: list[Callable[[Sample], None]] = [callback] if callback else []
+
+    def push(self, frame: Frame) -> None:  # called on the reading thread, under the gripper's lock
+        s = sample_of(frame, time.monotonic())
+        if s is None:
+            return
+        with self._cv:
+            self.received += 1
+            if len(self._q) >= self._maxlen:
+                self._q.popleft()
+                self.dropped += 1
+            self._q.append(s)
+            self._cv.notify_all()
+        if self.callbacks:
+            self._gripper._callback(self, s)
+
+    def revive(self) -> None:
+        with self._cv:
+            if not self._closed:
+                self._ended = False
+                self._end = None
+
+    def end(self, exc: BaseException | None) -> None:
+        with self._cv:
+            self._ended = True
+            self._end = exc
+            self._cv.notify_all()
+
+    def get(self, timeout: float | None = None) -> Sample:
+        """The next sample; TimeoutError after ``timeout`` s; StopIteration-free: raises the end reason
+        (ConnectionLostError) or ``EOFError`` when the stream was closed."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._cv:
+            while not self._q:
+                if self._ended:
+                    raise self._end if self._end is not None else EOFError("stream closed")
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
+                                       from_device=False)
+                self._cv.wait(remaining)
+            return self._q.popleft()
+
+    def __iter__(self) -> Iterator[Sample]:
+        while True:
+            try:
+                yield self.get()
+            except EOFError:
+                return
+
+    def drain(self) -> list[Sample]:
+        with self._cv:
+            out = list(self._q)
+            self._q.clear()
+        return out
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.end(None)
+            self._gripper._unsubscribe(self)
+
+    def __enter__(self) -> Stream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+

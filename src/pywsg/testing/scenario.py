@@ -1,0 +1,299 @@
+"""Scenarios: a timeline of world events for one virtual gripper, read from a TOML file.
+
+A CI job runs the same story every time: ``wsg sim --scenario FILE``, or ``SimThread(scenario=FILE)``
+and the ``wsg_sim`` fixture (``@pytest.mark.wsg_sim(scenario=...)``). Each ``[[event]]`` does one
+world action (:mod:`pywsg.testing.world`) at a time given in one of three ways::
+
+    [[event]]            # absolute: seconds after the scenario started
+    at = 10.0
+    do = "fault"
+    kind = "power"
+    on = true
+
+    [[event]]            # before each GRIP_PART (25h) request is executed ("GRIP" works too)
+    before = "GRIP"
+    do = "part"
+    width = 22.0
+
+    [[event]]            # 0.5 s after the gripper state (41h) becomes HOLDING, the 3rd time only
+    after = "HOLDING"
+    delay = 0.5
+    cycle = 3
+    do = "remove_part"
+
+``cycle = N`` picks the N-th occurrence of the trigger (1-based); without it every occurrence counts.
+Times are on the gripper's clock, so on a :class:`~pywsg.device.ManualClock` a scenario is exactly
+repeatable. The runner is sans-IO: a host calls :meth:`ScenarioRunner.run_due` when
+:meth:`ScenarioRunner.next_time` comes, and :func:`tap` reports commands and state changes.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..protocol import CATALOG, GripperState
+from .world import ACTIONS, WorldError, apply
+
+__all__ = ["Event", "Scenario", "ScenarioError", "ScenarioRunner", "drive_realtime", "tap"]
+
+_ALIASES = {"GRIP": "GRIP_PART", "RELEASE": "RELEASE_PART", "MOVE": "PREPOSITION", "HOME": "HOMING"}
+_NAMES = {spec.name: cid for cid, spec in CATALOG.items()}
+_TRIGGER_KEYS = {"at", "before", "after", "delay", "cycle", "do", "note"}
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be run; the message names the event and the key."""
+
+
+def _command_id(text: str, where: str) -> int:
+    name = text.strip().upper()
+    name = _ALIASES.get(name, name)
+    if name in _NAMES:
+        return _NAMES[name]
+    hexed = name[:-1] if name.endswith("H") else name[2:] if name.startswith("0X") else None
+    if hexed is not None:
+        try:
+            cid = int(hexed, 16)
+        except ValueError:
+            pass
+        else:
+            if cid in CATALOG:
+                return cid
+    raise ScenarioError(f"{where}: before: unknown command {text!r} (a name like GRIP_PART or an ID like 25h)")
+
+
+@dataclass(frozen=True)
+class Event:
+    """One scenario line. Exactly one of ``at`` (s), ``before`` (command ID), ``after`` (state)."""
+
+    do: str
+    params: Mapping[str, Any]
+    at: float | None = None
+    before: int | None = None
+    after: GripperState | None = None
+    delay: float = 0.0
+    cycle: int | None = None
+    note: str = ""
+
+    def describe(self) -> str:
+        if self.at is not None:
+            when = f"at t={self.at:g} s"
+        elif self.before is not None:
+            when = f"before {CATALOG[self.before].name}"
+        else:
+            assert self.after is not None
+            when = f"{self.delay:g} s after {self.after.name}" if self.delay else f"on {self.after.name}"
+        if self.cycle is not None:
+            when += f" (occurrence {self.cycle})"
+        return f"{self.do} {when}"
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed scenario file."""
+
+    events: tuple[Event, ...]
+    source: str = "<scenario>"
+
+    @classmethod
+    def load(cls, path: str | Path) -> Scenario:
+        """Read a TOML scenario file; raises ScenarioError (with the file name) when it is wrong."""
+        try:
+            with open(path, "rb") as f:
+                data = tomllib.load(f)
+        except OSError as exc:
+            raise ScenarioError(f"{path}: {exc.strerror or exc}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+        return cls.parse(data, str(path))
+
+    @classmethod
+    def parse(cls, data: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
+        raw = data.get("event", [])
+        if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
+            raise ScenarioError(f"{source}: events are [[event]] tables")
+        unknown = set(data) - {"event", "description"}
+        if unknown:
+            raise ScenarioError(f"{source}: unknown top-level key(s): {', '.join(sorted(unknown))}")
+        return cls(tuple(_event(e, f"{source}: event {i + 1}") for i, e in enumerate(raw)), source)
+
+
+def _event(e: Mapping[str, Any], where: str) -> Event:
+    do = e.get("do")
+    if do not in ACTIONS:
+        raise ScenarioError(f"{where}: do: must be one of {', '.join(ACTIONS)}, not {do!r}")
+    triggers = [k for k in ("at", "before", "after") if k in e]
+    if len(triggers) != 1:
+        raise ScenarioError(f"{where}: give exactly one of at / before / after")
+    params = {k: v for k, v in e.items() if k not in _TRIGGER_KEYS}
+
+    def num(key: str, default: float | None) -> float | None:
+        v = e.get(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+            raise ScenarioError(f"{where}: {key}: must be a non-negative number of seconds, not {v!r}")
+        return float(v)
+
+    cycle = e.get("cycle")
+    if cycle is not None and (isinstance(cycle, bool) or not isinstance(cycle, int) or cycle < 1):
+        raise ScenarioError(f"{where}: cycle: must be a whole number from 1, not {cycle!r}")
+    before = after = None
+    if "before" in e:
+        before = _command_id(str(e["before"]), where)
+    if "after" in e:
+        try:
+            after = GripperState[str(e["after"]).upper()]
+        except KeyError:
+            names = ", ".join(s.name for s in GripperState)
+            raise ScenarioError(f"{where}: after: must be a gripper state ({names}), not {e['after']!r}") from None
+    if "at" in e and (cycle is not None or "delay" in e):
+        raise ScenarioError(f"{where}: at: cycle and delay only go with before/after")
+    return Event(do=str(do), params=params, at=num("at", None), before=before, after=after,
+                 delay=num("delay", 0.0) or 0.0, cycle=cycle, note=str(e.get("note", "")))
+
+
+@dataclass
+class ScenarioRunner:
+    """Runs a :class:`Scenario` against one gripper, starting at ``start`` (s on its clock).
+
+    ``log`` collects ``(time, what happened)``; ``on_action`` is told the same (``wsg sim`` prints it).
+    World actions refused by the device (say a width beyond the stroke) are logged, not raised:
+    the story goes on.
+    """
+
+    scenario: Scenario
+    gripper: Any
+    start: float = 0.0
+    on_action: Callable[[float, str], None] | None = None
+    on_queue: Callable[[], None] | None = None
+    """Called when a timed action was queued (a realtime host re-arms its timer)."""
+    log: list[tuple[float, str]] = field(default_factory=list)
+    _pending: list[tuple[float, int, Event]] = field(default_factory=list)
+    _counts: dict[int, int] = field(default_factory=dict)
+    _state: GripperState | None = None
+    _seq: int = 0
+
+    def __post_init__(self) -> None:
+        for ev in self.scenario.events:
+            if ev.at is not None:
+                self._queue(self.start + ev.at, ev)
+        self._state = self.gripper.snapshot().gripper_state
+
+    def _queue(self, t: float, ev: Event) -> None:
+        self._seq += 1
+        self._pending.append((t, self._seq, ev))
+        self._pending.sort(key=lambda x: (x[0], x[1]))
+        if self.on_queue is not None:
+            self.on_queue()
+
+    def next_time(self) -> float | None:
+        """When the next timed action falls due (s on the gripper's clock), or None."""
+        return self._pending[0][0] if self._pending else None
+
+    def run_due(self, now: float) -> None:
+        """Carry out every timed action due at ``now``."""
+        while self._pending and self._pending[0][0] <= now:
+            _, _, ev = self._pending.pop(0)
+            self._do(ev, now)
+
+    def _fires(self, ev: Event) -> bool:
+        n = self._counts[id(ev)] = self._counts.get(id(ev), 0) + 1
+        return ev.cycle is None or ev.cycle == n
+
+    def before_command(self, command_id: int, now: float) -> None:
+        """A request with ``command_id`` is about to be executed."""
+        self.run_due(now)
+        for ev in self.scenario.events:
+            if ev.before == command_id and self._fires(ev):
+                self._do(ev, now)
+
+    def observe(self, now: float) -> None:
+        """Look at the gripper state; a change starts the ``after`` events for the new state."""
+        state = self.gripper.snapshot().gripper_state
+        if state == self._state:
+            return
+        self._state = state
+        for ev in self.scenario.events:
+            if ev.after == state and self._fires(ev):
+                if ev.delay:
+                    self._queue(now + ev.delay, ev)
+                else:
+                    self._do(ev, now)
+
+    def _do(self, ev: Event, now: float) -> None:
+        try:
+            text = apply(self.gripper, ev.do, ev.params)
+        except WorldError as exc:
+            text = f"{ev.do} refused: {exc}"
+        line = f"{text} ({ev.describe()}{', ' + ev.note if ev.note else ''})"
+        self.log.append((now - self.start, line))
+        if self.on_action is not None:
+            self.on_action(now - self.start, line)
+
+
+def tap(gripper: Any, runner: ScenarioRunner) -> Callable[[], None]:
+    """Route ``gripper``'s requests and polls through ``runner``; returns a function that undoes it.
+
+    Every request reaches the device through ``handle_frame`` (TCP, UDP, serial, CAN, fieldbus), and
+    every state change that time brings shows up in ``poll``, so these two instance methods are
+    wrapped. (A device-side command listener would make this wrapping unnecessary.)
+    """
+    clock = gripper.clock
+    handle_frame = gripper.handle_frame
+    poll = gripper.poll
+
+    def tapped_frame(s: Any, frame: Any) -> Any:
+        runner.before_command(frame.command_id, clock())
+        out = handle_frame(s, frame)
+        runner.observe(clock())
+        return out
+
+    def tapped_poll() -> Any:
+        out = poll()
+        now = clock()
+        runner.observe(now)
+        runner.run_due(now)
+        runner.observe(now)
+        return out
+
+    gripper.handle_frame = tapped_frame
+    gripper.poll = tapped_poll
+
+    def undo() -> None:
+        gripper.handle_frame = handle_frame
+        gripper.poll = poll
+
+    return undo
+
+
+async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> None:
+    """Serve ``runner``'s timed actions on the running loop at their times (real clock); cancel to stop."""
+    import asyncio
+
+    wake = asyncio.Event()
+    runner.on_queue = wake.set
+    try:
+        while True:
+            due = runner.next_time()
+            wake.clear()
+            if due is None:
+                await wake.wait()
+                continue
+            delay = due - clock()
+            if delay > 0:
+                try:
+                    await asyncio.wait_for(wake.wait(), delay)
+                    continue  # something earlier was queued
+                except TimeoutError:
+                    pass
+            now = clock()
+            runner.run_due(now)
+            runner.observe(now)
+    finally:
+        runner.on_queue = None

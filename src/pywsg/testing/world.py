@@ -1,0 +1,156 @@
+"""The world around one virtual gripper: what lies between its fingers, faults, heat.
+
+One set of world actions that every front end shares — the pytest fixture's ``wsg_sim.world``,
+the HTTP control API (``/api/world``, :mod:`pywsg.web.world_api`), ``wsg world``, ``wsg sim
+--part/--block`` and scenario files. Each action is a thin, validated call into the gripper's
+fault-injection facade (``gripper.faults``); it must run on the thread that owns the gripper.
+
+Units: widths in mm, stiffness in N/mm, temperature change in °C, time in s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["ACTIONS", "FAULT_KINDS", "WorldError", "apply", "world_state"]
+
+FAULT_KINDS = ("power", "current", "finger")
+"""Faults that can be switched on and off (command manual 000 Appendix B flags SF_POWER_FAULT,
+SF_CURR_FAULT, SF_FINGER_FAULT)."""
+
+ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat")
+"""Names of the world actions (also the ``do`` key of a scenario event)."""
+
+
+class WorldError(ValueError):
+    """A world action was refused: ``field`` names the parameter, the message says why."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field = field
+        self.reason = reason
+
+
+def _number(params: Mapping[str, Any], name: str, default: float | None = None) -> float:
+    value = params.get(name, default)
+    if value is None:
+        raise WorldError(name, "missing")
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise WorldError(name, f"must be a number, not {value!r}")
+    try:
+        out = float(value)
+    except ValueError:
+        raise WorldError(name, f"must be a number, not {value!r}") from None
+    if not math.isfinite(out):
+        raise WorldError(name, "must be a finite number")
+    return out
+
+
+def _width(gripper: Any, params: Mapping[str, Any]) -> float:
+    width = _number(params, "width")
+    stroke = float(getattr(getattr(gripper, "profile", None), "stroke", math.inf))
+    if not 0 <= width <= stroke:
+        raise WorldError("width", f"must be within 0..{stroke:g} mm (the stroke), not {width:g}")
+    return width
+
+
+def _on(params: Mapping[str, Any]) -> bool:
+    value = params.get("on", True)
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str) and value.lower() in ("on", "off", "true", "false", "1", "0"):
+        return value.lower() in ("on", "true", "1")
+    raise WorldError("on", f"must be on/off (true/false), not {value!r}")
+
+
+def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) -> str:
+    """Carry out one world ``action`` on ``gripper``; returns what was done, in words.
+
+    ``action``/``params``: ``part`` (width, stiffness=None), ``remove_part``, ``block`` (width),
+    ``unblock``, ``fault`` (kind: power|current|finger, on=True, finger=1|2 for kind finger),
+    ``heat`` (delta_c). Raises :class:`WorldError` for bad parameters.
+    """
+    p: Mapping[str, Any] = params or {}
+    faults = getattr(gripper, "faults", None)
+    if faults is None:
+        raise WorldError("_", "this gripper has no world to change (not a virtual gripper)")
+    try:
+        if action == "part":
+            width = _width(gripper, p)
+            if p.get("stiffness") is None:
+                faults.place_part(width)
+                return f"part of {width:g} mm placed"
+            stiffness = _number(p, "stiffness")
+            if stiffness <= 0:
+                raise WorldError("stiffness", "must be positive (N/mm)")
+            faults.place_part(width, stiffness=stiffness)
+            return f"part of {width:g} mm ({stiffness:g} N/mm) placed"
+        if action == "remove_part":
+            faults.remove_part()
+            return "part removed"
+        if action == "block":
+            width = _width(gripper, p)
+            faults.block_at(width)
+            return f"fingers blocked at {width:g} mm"
+        if action == "unblock":
+            faults.unblock()
+            return "fingers unblocked"
+        if action == "heat":
+            delta = _number(p, "delta_c")
+            faults.heat(delta)
+            return f"temperature changed by {delta:+g} °C"
+        if action == "fault":
+            return _fault(faults, p)
+    except WorldError:
+        raise
+    except ValueError as exc:  # the device names the field: "width: must be ..."
+        field, _, reason = str(exc).partition(": ")
+        raise WorldError(field if reason else "_", reason or str(exc)) from None
+    raise WorldError("action", f"unknown world action {action!r} (one of {', '.join(ACTIONS)})")
+
+
+def _fault(faults: Any, p: Mapping[str, Any]) -> str:
+    kind = str(p.get("kind", ""))
+    on = _on(p)
+    state = "on" if on else "off"
+    if kind == "power":
+        faults.power_fault(on)
+        return f"power fault {state}"
+    if kind == "current":
+        faults.current_fault(on)
+        return f"current fault {state}"
+    if kind == "finger":
+        finger = int(_number(p, "finger", 1))
+        if finger not in (1, 2):
+            raise WorldError("finger", f"must be 1 or 2, not {finger}")
+        faults.finger_fault(finger - 1, on)  # the device counts fingers from 0, the manual from 1
+        return f"finger {finger} fault {state}"
+    raise WorldError("kind", f"must be one of {', '.join(FAULT_KINDS)}, not {kind!r}")
+
+
+def world_state(gripper: Any) -> dict[str, Any]:
+    """The world and the gripper's state as plain JSON values (``wsg world state``, ``GET /api/world``).
+
+    ``time`` s on the gripper's clock; ``width`` mm; ``force`` N; ``temperature`` °C; ``part`` and
+    ``blocked_at`` mm or null; ``faults`` the switchable faults that are on.
+    """
+    snap = gripper.snapshot()
+    on = [kind for kind, attr in (("power", "power_fault"), ("current", "current_fault"))
+          if getattr(gripper, attr, False)]
+    on += [f"finger {i + 1}" for i, f in enumerate(getattr(gripper, "fingers", ()))
+           if getattr(f, "fault", False)]
+    return {
+        "time": round(float(snap.time), 6),
+        "model": snap.model,
+        "gripper_state": snap.gripper_state.name,
+        "width": round(float(snap.width), 3),
+        "force": round(float(snap.force), 3),
+        "temperature": round(float(snap.temperature), 2),
+        "fast_stop": bool(snap.fast_stop),
+        "part": snap.part,
+        "blocked_at": snap.blocked_at,
+        "faults": on,
+        "statistics": list(snap.statistics),
+    }

@@ -1,0 +1,84 @@
+"""A `wsg` command stopped by a signal announces its disconnect, so the gripper stays out of FAST STOP.
+
+Command manual 000 §3.1.2: closing the TCP connection without 07h raises FAST STOP. `timeout 0.8 wsg move 0`
+sends SIGTERM, a closed terminal sends SIGHUP, Ctrl-C SIGINT; each must unwind, send 07h, and exit 128 + N.
+Real processes, real signals, a real `wsg sim`.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+
+import pytest
+
+from .conftest import WSG, Sim, run_wsg
+
+
+def _flags(sim: Sim) -> list[str]:
+    r = run_wsg("--json", "flags", url=sim.udp_url)  # UDP: readable while another client holds TCP
+    assert r.code == 0, r
+    flags: list[str] = r.json()["flags"]
+    return flags
+
+
+def _wait_moving(sim: Sim, proc: subprocess.Popen[str]) -> None:
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        if "SF_MOVING" in _flags(sim):
+            return
+        time.sleep(0.1)
+    raise AssertionError("the fingers never moved")
+
+
+def _start_slow_move(sim: Sim) -> subprocess.Popen[str]:
+    assert run_wsg("move", "100", "--speed", "400", url=sim.url).code == 0
+    return subprocess.Popen([str(WSG), "--url", sim.url, "move", "0", "--speed", "5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture(scope="module")
+def homed(sim: Sim) -> Sim:
+    assert run_wsg("home", url=sim.url).code == 0
+    return sim
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: s.name)
+def test_signal_during_a_motion_announces_the_disconnect(homed: Sim, sig: signal.Signals) -> None:
+    proc = _start_slow_move(homed)
+    _wait_moving(homed, proc)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=15)
+    assert proc.returncode == 128 + sig, (out, err)  # 143 SIGTERM, 129 SIGHUP, 130 Ctrl-C
+    assert "Traceback" not in err
+    assert f"stopped by {sig.name}" in err
+    assert "SF_FAST_STOP" not in _flags(homed)
+
+
+def test_without_the_handling_an_unannounced_close_does_raise_fast_stop(homed: Sim) -> None:
+    """The control experiment: SIGKILL cannot be handled, and the gripper does what the manual says."""
+    proc = _start_slow_move(homed)
+    _wait_moving(homed, proc)
+    proc.kill()
+    proc.communicate(timeout=15)
+    deadline = time.monotonic() + 5
+    while "SF_FAST_STOP" not in _flags(homed):
+        assert time.monotonic() < deadline, "no FAST STOP after an unannounced close"
+        time.sleep(0.1)
+    r = run_wsg("ack", url=homed.url)
+    assert r.code == 0, r
+    assert "SF_FAST_STOP" not in _flags(homed)
+
+
+def test_terminal_closed_on_wsg_monitor_leaves_no_fast_stop(homed: Sim) -> None:
+    proc = subprocess.Popen([str(WSG), "--url", homed.url, "monitor", "--json", "--refresh", "0.1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().startswith("{")  # it is connected and streaming
+    proc.send_signal(signal.SIGHUP)
+    _out, err = proc.communicate(timeout=15)
+    assert proc.returncode == 129, err
+    assert "Traceback" not in err
+    assert "SF_FAST_STOP" not in _flags(homed)
