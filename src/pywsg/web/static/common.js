@@ -274,8 +274,18 @@
     if (r.ok) announce(what + " sent");
   }
 
+  // a table wider than a phone scrolls sideways: keyboard users must be able to focus it to scroll
+  function markScrollable() {
+    for (const t of document.querySelectorAll("main table.grid")) {
+      if (t.scrollWidth > t.clientWidth + 1) t.tabIndex = 0; else t.removeAttribute("tabindex");
+    }
+  }
+  WSG.markScrollable = markScrollable;
+
   document.addEventListener("DOMContentLoaded", function () {
     setupMenus();
+    markScrollable();
+    window.addEventListener("resize", markScrollable);
     for (const form of document.querySelectorAll("form.cmd")) {
       form.noValidate = true;  // one error style: the server's reason beside the field, not a browser bubble
       form.addEventListener("submit", function (ev) {
