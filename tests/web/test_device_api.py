@@ -182,3 +182,31 @@ def test_log_page_shows_iso_dates_and_folds_repeated_disconnects(sim: LiveSim, p
     last = page.locator("#log-table tbody tr:last-child td")
     assert "disconnect announced" in last.nth(3).inner_text() and "(×5)" in last.nth(3).inner_text()
     assert re.match(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}$", last.nth(1).inner_text())
+
+
+def test_docs_are_rendered_pages_with_their_images_and_downloads(api: httpx.Client) -> None:
+    """Issue 15 item 11: Markdown as pages (raw HTML escaped), images served, honest downloads."""
+    r = api.get("/docs/web.md")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
+    assert "<h1>The web interface</h1>" in r.text and "<table>" in r.text
+    assert '<img src="img/control-panel.png"' in r.text
+    img = api.get("/docs/img/control-panel.png")
+    assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
+    assert api.get("/docs/img/..%2F..%2Fpyproject.toml").status_code == 404
+    raw = api.get("/docs/raw/web.md")
+    assert raw.headers["content-type"].startswith("text/markdown") and raw.text.startswith("# The web interface")
+    ref = api.get("/downloads/command-reference.html")
+    assert "attachment" in ref.headers["content-disposition"] and "25h Grip Part" in ref.text
+    rows = list(csv.reader(io.StringIO(api.get("/downloads/fieldbus-register-map.csv").text)))
+    assert rows[0][:4] == ["image", "byte_offset", "size_bytes", "modbus_register"]
+    width = next(row for row in rows if row[0].startswith("output") and row[4] == "Width")
+    assert width[1:4] == ["2", "2", "1"]  # bytes 2..3 = holding register 1 (003 §4.1.1)
+
+
+@pytest.mark.browser
+def test_doc_page_shows_its_screenshots(sim: LiveSim, page: Any) -> None:
+    page.goto(sim.url + "/help")
+    page.click("#doc-links a[href='/docs/web.md']")
+    page.wait_for_function("Array.from(document.images).length > 0 && "
+                           "Array.from(document.images).every(i => i.complete && i.naturalWidth > 0)")
+    assert page.inner_text("main h1") == "The web interface"

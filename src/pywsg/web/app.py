@@ -6,6 +6,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``context``  the shared state: the web's own device session, the log feed, error style
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
+- ``help_docs`` the project docs rendered as pages, and the downloads
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``device_api`` identity (50h–52h) and the Motion page's commands (42h, 34h–38h, jog)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
@@ -35,7 +36,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from . import api, auth, device_api, live, pages, sim_api, world_api
+from . import api, auth, device_api, help_docs, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -47,6 +48,7 @@ STATIC = Path(__file__).resolve().parent / "static"
 # is a module with ``router(ctx) -> APIRouter`` and one line here.
 ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     pages.router,
+    help_docs.router,
     auth.router,
     api.router,
     device_api.router,

@@ -13,8 +13,8 @@ from pathlib import Path
 from string import Template
 from urllib.parse import quote
 
-from fastapi import APIRouter, HTTPException, Request
-from fastapi.responses import HTMLResponse, PlainTextResponse, Response
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse
 
 from .. import __version__
 from .context import WebContext
@@ -109,7 +109,7 @@ def doc_files() -> list[str]:
 
 
 def router(ctx: WebContext) -> APIRouter:
-    """The pages of ``PAGES``, Help and the project docs."""
+    """The pages of ``PAGES`` and Help (the docs themselves: ``help_docs``)."""
     r = APIRouter(include_in_schema=False)
 
     def make(path: str, title: str, tpl: str, script: str) -> Callable[[Request], Awaitable[HTMLResponse]]:
@@ -132,12 +132,5 @@ def router(ctx: WebContext) -> APIRouter:
             "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
         return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
                            reference=command_reference_html())
-
-    @r.get("/docs/{name}", response_class=PlainTextResponse)
-    async def doc_file(name: str) -> Response:
-        if name not in doc_files():  # only listed files: no path traversal
-            raise HTTPException(404, f"no document {name!r}")
-        return PlainTextResponse((PROJECT_DOCS / name).read_text(encoding="utf-8"),
-                                 media_type="text/markdown; charset=utf-8")
 
     return r

@@ -276,7 +276,7 @@
 
   // a table wider than a phone scrolls sideways: keyboard users must be able to focus it to scroll
   function markScrollable() {
-    for (const t of document.querySelectorAll("main table.grid")) {
+    for (const t of document.querySelectorAll("main table")) {
       if (t.scrollWidth > t.clientWidth + 1) t.tabIndex = 0; else t.removeAttribute("tabindex");
     }
   }
