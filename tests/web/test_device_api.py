@@ -210,3 +210,30 @@ def test_doc_page_shows_its_screenshots(sim: LiveSim, page: Any) -> None:
     page.wait_for_function("Array.from(document.images).length > 0 && "
                            "Array.from(document.images).every(i => i.complete && i.naturalWidth > 0)")
     assert page.inner_text("main h1") == "The web interface"
+
+
+def test_scripting_start_stop_and_flags(sim: LiveSim, api: httpx.Client) -> None:
+    """Issue 15 item 8: which script runs, start/stop it, SF_SCRIPT_RUNNING (000 §3.4.1 flag table)."""
+    d = api.post("/api/script/stop").json()
+    assert d["running"] == [] and not d["script_running"] and "if_of_mirror" in d["available"]
+    d = api.post("/api/script/start", json={"name": "if_of_mirror"}).json()
+    assert d["running"] == ["if_of_mirror"] and d["script_running"] and not d["script_failure"]
+    assert sim.snapshot().flags & SystemFlag.SF_SCRIPT_RUNNING
+    r = api.post("/api/script/start", json={"name": "nope"})
+    assert r.status_code == 422 and "unknown script" in r.json()["errors"]["name"]
+    assert api.get("/api/script").json()["running"] == ["if_of_mirror"]  # a refused start changes nothing
+    d = api.post("/api/script/stop").json()
+    assert d["running"] == [] and not sim.snapshot().flags & SystemFlag.SF_SCRIPT_RUNNING
+
+
+@pytest.mark.browser
+def test_scripting_page_shows_the_running_script_live(sim: LiveSim, page: Any, api: httpx.Client) -> None:
+    page.goto(sim.url + "/scripting")
+    page.wait_for_function("document.getElementById('script-name').options.length > 0")
+    page.select_option("#script-name", "if_of_mirror")
+    page.click("#form-script button[type=submit]")
+    page.wait_for_function("document.getElementById('script-flag-running').innerText === 'on'")
+    assert page.inner_text("#script-running") == "if_of_mirror"
+    page.click("#script-stop")
+    page.wait_for_function("document.getElementById('script-flag-running').innerText === 'off'")
+    assert page.inner_text("#script-running") == "none"

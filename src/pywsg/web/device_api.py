@@ -1,8 +1,9 @@
-"""Identity and the Motion page's further commands: 50h/51h/52h, 42h, 34h–38h and jog.
+"""Identity, the Motion page's further commands (50h/51h/52h, 42h, 34h–38h, jog) and Scripting.
 
 Each is an ordinary request frame on the web's device session (``context.CommandBridge``), like
 the Control Panel's motions, except jog: it is the fieldbus's JOG (``gripper.jog``, 003 §5), which
-the binary protocol does not have. Answers as in ``api.py``: 200, 409 refused by the device (its
+the binary protocol does not have, and the on-board script (a firmware plugin: ``gripper.load_plugin``),
+which has no command either. Answers as in ``api.py``: 200, 409 refused by the device (its
 status code by name), 422 invalid input naming the field. Units: mm, mm/s, N.
 """
 
@@ -15,7 +16,7 @@ from fastapi.responses import JSONResponse
 from pydantic import Field
 
 from ..device import decode_fw_version
-from ..protocol import Command, Status
+from ..protocol import Command, Status, SystemFlag
 from .api import StrictBody
 from .context import InputError, WebContext, command_result, motion_limits
 
@@ -31,6 +32,10 @@ class SoftLimitsBody(StrictBody):
 
 class OverdriveBody(StrictBody):
     on: bool
+
+
+class ScriptBody(StrictBody):
+    name: str = Field(min_length=1, max_length=64, description="plugin name (Settings: script)")
 
 
 class JogBody(StrictBody):
@@ -122,5 +127,40 @@ def router(ctx: WebContext) -> APIRouter:
             body_out["detail"] = f"JOG refused by the device: {Status(status).description} ({Status(status).name})"
             return JSONResponse(body_out, status_code=409)
         return JSONResponse(body_out)
+
+    # -- Scripting: the on-board script (firmware plugin) --------------------------------------------
+    def script_state() -> dict[str, Any]:
+        from ..device.plugins import PLUGINS  # the device's registry of plugins
+
+        flags = int(ctx.gripper.snapshot().flags)
+        return {"available": sorted(PLUGINS), "running": sorted(getattr(ctx.gripper, "plugins", {})),
+                "startup": getattr(ctx.gripper.settings, "script", None),
+                "script_running": bool(flags & SystemFlag.SF_SCRIPT_RUNNING),
+                "script_failure": bool(flags & SystemFlag.SF_SCRIPT_FAILURE)}
+
+    @r.get("/script")
+    async def get_script() -> dict[str, Any]:
+        """Which scripts exist, which runs, which starts at power-up, SF_SCRIPT_RUNNING/FAILURE."""
+        return script_state()
+
+    @r.post("/script/start")
+    async def start_script(body: ScriptBody) -> dict[str, Any]:
+        from ..device.plugins import PLUGINS
+
+        if body.name not in PLUGINS:
+            raise InputError({"name": f"unknown script (known: {', '.join(sorted(PLUGINS))})"})
+        for running in list(ctx.gripper.plugins):  # one script at a time, as on the real device
+            ctx.gripper.unload_plugin(running)
+        try:
+            ctx.gripper.load_plugin(body.name)
+        except ValueError as exc:
+            raise InputError({"name": str(exc)}) from None
+        return script_state()
+
+    @r.post("/script/stop")
+    async def stop_script() -> dict[str, Any]:
+        for running in list(ctx.gripper.plugins):
+            ctx.gripper.unload_plugin(running)
+        return script_state()
 
     return r

@@ -29,6 +29,7 @@ MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
     ("Settings", [("/settings/interface", "Command Interface"), ("/settings/motion", "Motion Configuration")]),
     ("Diagnosis", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
+    ("Scripting", [("/scripting", "Scripting")]),
     ("Simulation", [("/simulation", "Simulation")]),
     ("Help", [("/help", "Documentation")]),
 ]
@@ -40,6 +41,7 @@ PAGES: dict[str, tuple[str, str, str]] = {
     "/settings/motion": ("Motion Configuration", "settings.html", "settings"),
     "/diagnosis/log": ("System Log", "log.html", "log"),
     "/diagnosis/fieldbus": ("Fieldbus Monitor", "fieldbus.html", "fieldbus"),
+    "/scripting": ("Scripting", "scripting.html", "scripting"),
     "/simulation": ("Simulation", "simulation.html", "simulation"),
 }
 
