@@ -8,6 +8,7 @@ the identity header; the Motion page's commands; contrast and touch-target sizes
 
 from __future__ import annotations
 
+import itertools
 import socket
 import struct
 from collections.abc import Iterator
@@ -343,3 +344,25 @@ def test_contrast_and_touch_targets(sim: LiveSim, browser: Any, viewport: str) -
     assert label.startswith("Width over the last 30 s"), label
     page.context.close()
     assert not errors
+
+
+def test_plots_show_no_position_before_homing_and_round_nonnegative_ticks(fresh_sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 6 (plots): no 0.00 mm line while the position is [n/a]; ticks 0, 0.5, 1 … not -0.08."""
+    sim = fresh_sim
+    assert not sim.snapshot().referenced
+    page.goto(sim.url + "/")
+    live(page)
+    page.wait_for_timeout(300)
+    assert page.inner_text("#g-width") == "[n/a]" and page.inner_text("#width-now") == "[n/a]"
+    assert page.evaluate("WSG.plots.width.points.every(p => p[1] === null)")
+    for plot in ("width", "force"):
+        ticks = page.evaluate(f"WSG.plots.{plot}.ticks")
+        assert ticks and min(ticks) >= 0, ticks
+        steps = {round(b - a, 6) for a, b in itertools.pairwise(ticks)}
+        assert len(steps) == 1 and next(iter(steps)) in (0.1, 0.2, 0.25, 0.5, 1, 2, 5, 10, 20, 50), ticks
+    api = client_for(sim)
+    home(sim, api)
+    page.wait_for_function("WSG.plots.width.points.some(p => p[1] !== null)")
+    ticks = page.evaluate("WSG.plots.width.ticks")
+    assert min(ticks) >= 0 and max(ticks) >= 110, ticks
+    api.close()

@@ -48,7 +48,9 @@
     const y = function (v) { return top + (h - top - bottom) * (1 - (v - lo) / (hi - lo)); };
     c.strokeStyle = "#ddd"; c.fillStyle = "#374151"; c.font = "11px sans-serif"; c.lineWidth = 1;
     const digits = step < 1 ? 1 : 0;
+    this.ticks = [];  // the value axis' labels (read by the tests)
     for (let v = lo; v <= hi + step / 2; v += step) {
+      this.ticks.push(Number(v.toFixed(digits)));
       const yy = y(v);
       c.beginPath(); c.moveTo(left, yy); c.lineTo(w - right, yy); c.stroke();
       c.fillText(v.toFixed(digits), 2, yy + 4);
