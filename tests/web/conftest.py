@@ -35,6 +35,7 @@ CHROMIUM_ARGS = [
     "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
 ]
 T = TypeVar("T")
+REMOTE_PASSWORD = "correct horse battery"
 
 
 class LiveSim:
@@ -164,6 +165,23 @@ def page(browser: Any) -> Iterator[Any]:
     yield pg
     context.close()
     assert not errors, f"JavaScript errors: {errors}"
+
+
+@pytest.fixture(scope="module")
+def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    """Bound to 0.0.0.0 with a password: the non-loopback rules (tests use it over 127.0.0.1)."""
+    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+def submit_form(page: Any, form: str, **values: str) -> None:
+    """Fill the named inputs of ``form`` (a CSS selector) and press its submit button."""
+    for name, value in values.items():
+        page.fill(f"{form} [name={name}]", value)
+    page.click(f"{form} button[type=submit]")
 
 
 def home(sim: LiveSim, api: httpx.Client) -> None:

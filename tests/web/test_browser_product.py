@@ -20,7 +20,7 @@ import pytest
 
 from pywsg.protocol import CATALOG, Command, Frame, SystemFlag
 
-from .conftest import LiveSim, client_for, home, read_status, wait_for
+from .conftest import LiveSim, client_for, home, read_status, submit_form, wait_for
 from .test_browser import PAGES, live, shot
 
 pytestmark = pytest.mark.browser
@@ -157,7 +157,7 @@ def test_every_control_is_clickable_and_nothing_overflows(sim: LiveSim, browser:
         overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
         assert overflow <= 1, (path, overflow)
         if viewport == "phone":
-            shot(page, "phone" + path.replace("/", "_"))
+            shot(page, "phone" + path.replace("/", "_"), "control-panel-phone.png" if path == "/" else None)
     page.context.close()
     assert not failures, failures
     assert not errors
@@ -254,14 +254,10 @@ def test_motion_page_soft_limits_statistics_and_jog(sim: LiveSim, page: Any) -> 
     page.goto(sim.url + "/settings/motion")
     live(page)
     page.wait_for_function("document.getElementById('stat-total').innerText !== '–'")
-    page.fill("#form-soft-limits input[name=minus]", "10")
-    page.fill("#form-soft-limits input[name=plus]", "90")
-    page.click("#form-soft-limits button[type=submit]")
+    submit_form(page, "#form-soft-limits", minus="10", plus="90")
     page.wait_for_function("document.getElementById('soft-now').innerText === '10.00 mm … 90.00 mm'")
     assert api.get("/api/soft-limits").json() == {"minus": 10.0, "plus": 90.0}
-    page.fill("#form-soft-limits input[name=minus]", "80")
-    page.fill("#form-soft-limits input[name=plus]", "20")
-    page.click("#form-soft-limits button[type=submit]")
+    submit_form(page, "#form-soft-limits", minus="80", plus="20")
     page.wait_for_function("document.querySelector('#form-soft-limits .field-error[data-for=plus]').innerText")
     page.click("#form-soft-limits button.delete")
     page.wait_for_function("document.getElementById('soft-now').innerText === 'none set'")
@@ -279,7 +275,7 @@ def test_motion_page_soft_limits_statistics_and_jog(sim: LiveSim, page: Any) -> 
     assert stopped < 110
     page.click("#form-stats button[type=submit]")
     page.wait_for_function("document.querySelector('#form-stats output').innerText === 'E_SUCCESS'")
-    shot(page, "motion-configuration")
+    shot(page, "motion-configuration", "motion-configuration.png")
     api.close()
 
 

@@ -21,18 +21,9 @@ import pytest
 from pywsg.web.context import MAX_BODY
 
 from .conftest import LiveSim, client_for
-from .test_security import PASSWORD, login
+from .test_security import login
 
 CHUNK = b"x" * 65536
-
-
-@pytest.fixture(scope="module")
-def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=PASSWORD)
-    try:
-        yield s
-    finally:
-        s.close()
 
 
 @pytest.fixture(scope="module")
