@@ -8,8 +8,9 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``pages``    the HTML pages and the menu
 - ``help_docs`` the project docs rendered as pages, and the downloads
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
-- ``device_api`` identity (50h–52h) and the Motion page's commands (42h, 34h–38h, jog)
+- ``device_api`` identity (50h–52h), the Motion page's commands (42h, 34h–38h, jog), Scripting
 - ``sim_api``  fault injection under /api/sim (Simulation page)
+- ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
 
 Units everywhere: mm, mm/s, mm/s², N, °C. See docs/web.md for the API and the security rules.
@@ -53,6 +54,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     api.router,
     device_api.router,
     sim_api.router,
+    world_api.router,
     live.router,
 ]
 
@@ -102,7 +104,6 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     auth.install_guard(app, ctx, bound=host, allowed_hosts=allowed_hosts)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
-    app.include_router(world_api.router)  # world control for scripts (wsg world, curl, pywsg.testing)
     return app
 
 
