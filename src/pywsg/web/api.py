@@ -174,10 +174,13 @@ def router(ctx: WebContext) -> APIRouter:
     @r.post("/settings")
     async def post_settings(request: Request) -> Response:
         """Change some settings: a JSON object {name: value}. 422 names each refused field."""
+        data = await request.body()
         try:
-            raw = json.loads(await request.body())
+            raw = json.loads(data)
         except (ValueError, UnicodeDecodeError):
             return error(422, "invalid input: body is not JSON", {"_": "body is not JSON"})
+        except RecursionError:  # e.g. 5,000 nested [[[...]]]: the parser gives up, so do we
+            return error(422, "invalid input: JSON nested too deeply", {"_": "JSON nested too deeply"})
         if not isinstance(raw, dict) or not raw:
             return error(422, "invalid input: expected a JSON object of settings",
                          {"_": "expected a JSON object {name: value}"})

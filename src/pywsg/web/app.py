@@ -95,6 +95,11 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
         wants_page = not request.url.path.startswith("/api/") and "text/html" in request.headers.get("accept", "")
         if exc.status_code == 404 and wants_page and hasattr(request.state, "websession"):
             return pages.not_found_page(ctx, request, f"There is no page {request.url.path}.")
+        if exc.status_code == 400 and exc.detail == "There was an error parsing the body":
+            # FastAPI's answer when json.loads itself fails (RecursionError on 5,000 nested arrays):
+            # invalid input like any other unparsable body, in the one error style
+            return error(422, "invalid input: body could not be parsed (nested too deeply?)",
+                         {"_": "body could not be parsed"})
         return error(exc.status_code, str(exc.detail), headers=exc.headers)
 
     @app.exception_handler(InputError)
