@@ -39,8 +39,10 @@ def test_readme_python_quick_start_runs() -> None:
         with contextlib.redirect_stdout(out):
             exec(compile(code, "README.md", "exec"), {})
         text = out.getvalue()
-        # no part placed: the example takes its NoPartError branch, then prints the state
-        assert "E_CMD_FAILED" in text and "SF_CMD_FAILURE" in text
+        # no part placed: the example takes its NoPartError branch and prints what its comment says
+        said = re.search(r"print\(exc\.status, exc\.flags\)\s+# (.+)", blocks[0])
+        assert said is not None
+        assert text.splitlines()[0] == said.group(1).strip()  # names, not 262145 (issue 16 item 6)
         assert "NO_PART" in text
     finally:
         assert stop is not None

@@ -162,6 +162,10 @@ class BadChecksumReply(ChecksumError, ProtocolError):
     """A frame from the gripper failed its CRC check; it was not accepted."""
 
 
+#: The driver's advice, in Python words; front ends translate it (`wsg` says "run `wsg ack` first").
+HINT_ACKNOWLEDGE = "call acknowledge() first"
+HINT_HOME = "call home() first"
+
 _BY_STATUS: dict[int, type[WsgError]] = {
     Status.E_NOT_INITIALIZED: NotReferencedError,
     Status.E_ACCESS_DENIED: AccessDeniedError,
@@ -206,10 +210,10 @@ def error_for(status: Status | int, command: int | None, flags: SystemFlag | Non
         detail = detail or _ack_refused(flags)
     elif cls is AccessDeniedError and flags is not None and flags & SystemFlag.SF_FAST_STOP:
         cls = FastStopError
-        detail = detail or "the gripper is in FAST STOP; call acknowledge() first"
+        detail = detail or f"the gripper is in FAST STOP; {HINT_ACKNOWLEDGE}"
     elif cls is CommandFailedError and command == Command.GRIP_PART:
         cls = NoPartError
         detail = detail or "no part found within the clamping travel"
     elif cls is NotReferencedError:
-        detail = detail or "the gripper is not referenced; call home() first"
+        detail = detail or f"the gripper is not referenced; {HINT_HOME}"
     return cls(status, command, detail, flags=flags)

@@ -82,3 +82,28 @@ def test_terminal_closed_on_wsg_monitor_leaves_no_fast_stop(homed: Sim) -> None:
     assert proc.returncode == 129, err
     assert "Traceback" not in err
     assert "SF_FAST_STOP" not in _flags(homed)
+
+
+def test_nohup_keeps_sighup_ignored(homed: Sim) -> None:
+    """`nohup wsg ...` sets SIGHUP to ignored: wsg must not turn it back on."""
+    proc = subprocess.Popen(["nohup", str(WSG), "--url", homed.url, "monitor", "--json", "--refresh", "0.1",
+                             "--duration", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().startswith("{")
+    proc.send_signal(signal.SIGHUP)
+    _out, err = proc.communicate(timeout=15)
+    assert proc.returncode == 0, err  # ran its full --duration
+    assert "SF_FAST_STOP" not in _flags(homed)
+
+
+def test_sigterm_on_a_raw_link_session_announces_the_disconnect(homed: Sim) -> None:
+    """`wsg log --subscribe` holds a raw link (not the driver): SIGTERM unwinds its `with Link` too."""
+    proc = subprocess.Popen([str(WSG), "--url", homed.url, "log", "--subscribe", "width", "--json"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().startswith("{")  # the first logged frame: it is connected
+    proc.send_signal(signal.SIGTERM)
+    _out, err = proc.communicate(timeout=15)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err
+    assert "SF_FAST_STOP" not in _flags(homed)

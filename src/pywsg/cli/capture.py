@@ -365,6 +365,8 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
             from .decode import emit
 
             emit(decoded, as_json)
+    except BrokenPipeError:
+        raise  # the reader went away (`| head`): click leaves quietly
     except (OSError, ValueError) as exc:
         click.echo(f"error: {path}: {exc}", err=True)
         return 1

@@ -97,8 +97,8 @@ class LazyGroup(click.Group):
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.option(
-    "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True,
-    help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500]?reply_port=1501, "
+    "--url", envvar="WSG_URL", default=DEFAULT_URL, show_default=True, metavar="URL",
+    help="Gripper address: tcp://HOST[:1000], udp://HOST[:1500][?reply_port=1501], "
     "serial:///dev/ttyUSB0?baudrate=115200, can://can0?interface=socketcan (or set WSG_URL).",
 )
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")

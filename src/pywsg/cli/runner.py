@@ -17,6 +17,7 @@ from typing import Any, NoReturn, TypeVar
 
 import click
 
+from ..errors import HINT_ACKNOWLEDGE, HINT_HOME
 from ..protocol import Status, StatusError
 from .commlog import CommLog
 
@@ -109,9 +110,8 @@ def emit(value: Any, as_json: bool, key: str = "value") -> None:
 
 #: The driver's hints name Python calls; on the command line the same advice names `wsg` commands.
 CLI_HINTS: dict[str, str] = {
-    "call acknowledge() first": "run `wsg ack` first",
-    "call home() first": "run `wsg home` first",
-    "stop() it": "`wsg stop` it",
+    HINT_ACKNOWLEDGE: "run `wsg ack` first",
+    HINT_HOME: "run `wsg home` first",
 }
 
 HELD_BY_ANOTHER = ("another client holds this gripper's TCP command interface (one client at a time; see "

@@ -1,7 +1,7 @@
 """Leaving on a signal without a FAST STOP.
 
 A WSG raises FAST STOP when its TCP client goes away without announcing it (07h, command manual
-000 §3.1.2). A `wsg` command killed by SIGTERM (``timeout 0.8 wsg move 0``), SIGHUP (the terminal
+000 §1.4.2, §3.1.2). A `wsg` command killed by SIGTERM (``timeout 0.8 wsg move 0``), SIGHUP (the terminal
 of a ``wsg monitor`` closed) or SIGINT (Ctrl-C) therefore unwinds like an exception: the command's
 ``finally``/``with`` blocks close the connection, which announces the disconnect, and the process
 exits with the shell convention 128 + signal number (130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP).
@@ -18,7 +18,7 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
 class Interrupted(BaseException):
@@ -38,10 +38,13 @@ def _raise(signum: int, _frame: FrameType | None) -> None:
 
 
 def install() -> None:
-    """Turn SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` in the main thread."""
+    """Turn SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` in the main thread.
+
+    A signal the parent set to be ignored stays ignored (``nohup wsg monitor``, a shell's ``&``)."""
     for sig in SIGNALS:
         with contextlib.suppress(ValueError, OSError):  # not the main thread / not on this OS
-            signal.signal(sig, _raise)
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                signal.signal(sig, _raise)
 
 
 def run(coro: Coroutine[Any, Any, T]) -> T:
@@ -60,6 +63,8 @@ def run(coro: Coroutine[Any, Any, T]) -> T:
                 task.cancel()
 
         for sig in SIGNALS:
+            if signal.getsignal(sig) is signal.SIG_IGN:
+                continue  # ignored by the parent: keep it so
             with contextlib.suppress(NotImplementedError, ValueError, RuntimeError):
                 loop.add_signal_handler(sig, stop, sig)
         return await coro

@@ -9,8 +9,8 @@
         print(g.tcp_port, g.udp_port, g.serial_path)   # bound ports, pty device path
         # ... connect a client to tcp://127.0.0.1:{g.tcp_port}
 
-In the Python API a port of ``0`` means "any free port" and ``None`` means "interface off" (the CLI
-maps its ``0`` to off). With ``count=N`` there are N independent grippers; fixed ports count up
+In the Python API a port of ``0`` means "any free port" and ``None`` means "interface off" (on the
+command line: ``0`` and ``off``). With ``count=N`` there are N independent grippers; fixed ports count up
 from the given one (gripper ``i`` on ``port + i``), port 0 gives each its own free port.
 """
 
