@@ -33,7 +33,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, live, pages, sim_api, world_api
+from . import api, auth, live, pages, scripting, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -49,6 +49,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     api.router,
     sim_api.router,
     live.router,
+    scripting.router,
 ]
 
 
