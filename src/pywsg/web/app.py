@@ -6,6 +6,8 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``context``  the shared state: the web's own device session, the log feed, error style
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
+- ``docs_pages`` Help → Documentation: the docs as HTML, downloads
+- ``scripting`` the Scripting page (firmware plugins)
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``live``     the WebSocket /ws (20 Hz updates)
@@ -33,7 +35,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, live, pages, scripting, sim_api, world_api
+from . import api, auth, docs_pages, live, pages, scripting, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -50,6 +52,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     sim_api.router,
     live.router,
     scripting.router,
+    docs_pages.router,
 ]
 
 
