@@ -8,6 +8,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``pages``    the HTML pages and the menu
 - ``docs_pages`` Help → Documentation: the docs as HTML, downloads
 - ``scripting`` the Scripting page (firmware plugins)
+- ``interface_page`` Settings → Command Interface (stored interface and network values)
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``live``     the WebSocket /ws (20 Hz updates)
@@ -35,7 +36,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, docs_pages, live, pages, scripting, sim_api, world_api
+from . import api, auth, docs_pages, interface_page, live, pages, scripting, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -53,6 +54,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     live.router,
     scripting.router,
     docs_pages.router,
+    interface_page.router,
 ]
 
 

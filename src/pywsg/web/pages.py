@@ -35,7 +35,6 @@ MENU: list[tuple[str, list[tuple[str, str]]]] = [
 # path: (title, template, script)
 PAGES: dict[str, tuple[str, str, str]] = {
     "/": ("Control Panel", "control.html", "control"),
-    "/settings/interface": ("Command Interface", "settings.html", "settings"),
     "/settings/motion": ("Motion Configuration", "settings.html", "settings"),
     "/diagnosis/log": ("System Log", "log.html", "log"),
     "/diagnosis/fieldbus": ("Fieldbus Monitor", "fieldbus.html", "fieldbus"),
