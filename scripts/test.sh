@@ -26,3 +26,12 @@ echo "== mypy (strict)"
 .venv/bin/mypy
 echo "== pytest"
 .venv/bin/python -m pytest -q "$@"
+if [ $# -eq 0 ]; then
+    # The pymodbus pin's lower end (pyproject.toml) is supported too: run the fieldbus tests on it, shadowing the
+    # installed (newest) pymodbus with the oldest allowed one.
+    oldest=$(.venv/bin/python -c 'import re,tomllib;d=tomllib.load(open("pyproject.toml","rb"));print(next(re.search(r">=([0-9.]+)",x).group(1) for x in d["project"]["dependencies"] if x.startswith("pymodbus")))')
+    echo "== fieldbus tests on the oldest supported pymodbus ($oldest)"
+    target=.venv/pymodbus-$oldest
+    [ -d "$target/pymodbus" ] || .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps --target "$target" "pymodbus==$oldest"
+    PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider tests/fieldbus
+fi

@@ -65,7 +65,8 @@ def test_no_import_cycles_inside_device() -> None:
             visit(name, [])
     assert not cycle, " -> ".join(cycle)
     # plugins and fault injection depend on an interface, not on the facade
-    for name in ("faults", "plugins.base", "plugins.ros_measure", "plugins.umi_measure", "axis"):
+    for name in ("faults", "plugins.base", "plugins.ros_measure", "plugins.umi_measure", "axis", "health",
+                 "streams", "schedule"):
         assert not graph[name] & {"gripper", "core", "handlers"}, (name, graph[name])
 
 

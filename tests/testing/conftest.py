@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -36,9 +37,10 @@ class SimProc:
     def __init__(self, *args: str, modbus: bool = False) -> None:
         self.tcp_port = free_port()
         self.modbus_port = free_port() if modbus else 0
+        modbus_arg = str(self.modbus_port) if modbus else "off"
         web_port = free_port()  # the CLI's 0 means "off"
         argv = [*WSG, "sim", "--no-uvloop", "--tcp-port", str(self.tcp_port), "--udp-port", "0",
-                "--serial", "off", "--web-port", str(web_port), "--modbus-port", str(self.modbus_port), *args]
+                "--serial", "off", "--web-port", str(web_port), "--modbus-port", modbus_arg, *args]
         self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV)
         self.out: list[str] = []
         self.url = f"tcp://127.0.0.1:{self.tcp_port}"
@@ -51,6 +53,11 @@ class SimProc:
                 self.stop()
                 raise AssertionError("wsg sim did not start:\n" + "".join(self.out) + line)
             self.out.append(line)
+            if line.startswith("{"):  # wsg sim --json
+                event = json.loads(line)
+                if event.get("kind") == "web":
+                    self.web = str(event["url"]).rstrip("/")
+                continue
             m = re.search(r"web\s+(http://\S+?)/?$", line.strip())
             if m:
                 self.web = m.group(1)

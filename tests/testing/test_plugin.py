@@ -57,6 +57,13 @@ def test_modbus_and_serial(wsg_sim):
     with Gripper(wsg_sim.serial_url) as g:
         assert g.temperature() > 0
 
+@pytest.mark.wsg_sim(settings={"crc_check": False})
+def test_settings_by_marker(wsg_sim):
+    with socket.create_connection(("127.0.0.1", int(wsg_sim.url.rsplit(":", 1)[1])), timeout=5) as s:
+        s.sendall(bytes.fromhex("AAAAAA 43 03 00 00 00 00 0000"))  # wrong checksum, CRC check off
+        reply = s.recv(64)
+    assert reply[3] == 0x43 and reply[6:8] == b"\\x00\\x00"  # E_SUCCESS (000 §1.4.1: CRC evaluation disabled)
+
 def test_faults_and_heat(wsg_sim):
     wsg_sim.world.fault("power", True)
     assert wsg_sim.world.state()["fast_stop"] is True
@@ -72,7 +79,7 @@ def test_user_suite_runs_with_the_installed_plugin(tmp_path: Path) -> None:
          "test_cell.py"], cwd=tmp_path, capture_output=True, text=True, timeout=180,
     )
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "9 passed" in r.stdout
+    assert "10 passed" in r.stdout
 
 
 def test_plugin_is_registered_through_the_entry_point() -> None:

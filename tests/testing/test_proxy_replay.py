@@ -122,8 +122,10 @@ def test_replay_matches_the_same_gripper_and_finds_a_different_one(sim: SimThrea
         report = json.loads(r.stdout)
         assert report["matched"] is False
         assert any(d["what"] == "width" for d in report["differences"])
-    with SimThread() as fresh:  # a power fault: homing and the move fail with another status code
-        fresh.world.fault("power", True)
+    with SimThread() as fresh:  # a block in the way: the move fails with another status code
+        # at 52 mm, below the fingers at power-up (55 mm): homing opens away from it, the move to 50 mm
+        # runs into it (homing into an obstacle would only set a wrong reference, 000 §3.2.1)
+        fresh.world.block(52.0)
         r = wsg("replay", str(pcap), "--to", fresh.url)
         assert r.returncode == 1 and "status" in r.stdout
 

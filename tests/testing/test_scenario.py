@@ -3,6 +3,7 @@ states, deterministic on the manual clock; and `wsg sim --scenario` as a subproc
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -110,3 +111,12 @@ def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     assert r.returncode == 0, r.stdout + r.stderr
     assert "1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
+
+
+
+def test_wsg_sim_json_reports_scenario_actions_as_json(tmp_path: Path, sim_proc: type[SimProc]) -> None:
+    path = _write(tmp_path, '[[event]]\nat = 0.1\ndo = "block"\nwidth = 30\n')
+    sim = sim_proc("--json", "--scenario", str(path))
+    line = sim.wait_for('"event": "scenario"')
+    event = json.loads(line)
+    assert event["gripper"] == 0 and event["action"].startswith("fingers blocked at 30 mm") and event["t"] >= 0.1

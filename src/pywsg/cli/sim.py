@@ -164,7 +164,10 @@ def sim(
         from ..testing.host import setup_world
 
         def said(i: int, t: float, text: str) -> None:
-            click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
+            if as_json:
+                click.echo(json.dumps({"event": "scenario", "gripper": i, "t": round(t, 6), "action": text}))
+            else:
+                click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
 
         setup_world(server, part=part_width, block=block_width, scenario=scenario, on_action=said)
 

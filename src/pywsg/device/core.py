@@ -1,13 +1,13 @@
 """The device core: one gripper's state and the rules that tie its parts together, without any wire format.
 
 :class:`DeviceCore` owns the parts — the :class:`~pywsg.device.axis.Axis` (what the fingers do), the
-:class:`~pywsg.device.schedule.Schedule`, the :class:`~pywsg.device.streams.Streams`, the thermal model,
-the fingers and the plugins — and the device-wide rules between them: FAST STOP (000 §3.2.4/3.2.5),
-faults and temperature (Appendix B), time advancing through internal events, and readings in closed
-form. The command handlers (:mod:`pywsg.device.handlers`) and the facade
-(:class:`~pywsg.device.gripper.VirtualGripper`) are built on top; plugins and fault injection see it only
-through small Protocols (:class:`~pywsg.device.plugins.base.ScriptHost`,
-:class:`~pywsg.device.faults.FaultTarget`).
+:class:`~pywsg.device.schedule.Schedule`, the :class:`~pywsg.device.streams.Streams`, the
+:class:`~pywsg.device.health.Health` (temperature and fault latches), the fingers and the plugins — and
+the device-wide rules between them: FAST STOP (000 §3.2.4/3.2.5), what faults and temperature do to a
+motion (Appendix B), time advancing through internal events, and readings in closed form. The command
+handlers (:mod:`pywsg.device.handlers`) and the facade (:class:`~pywsg.device.gripper.VirtualGripper`)
+are built on top; plugins and fault injection see it only through small Protocols
+(:class:`~pywsg.device.plugins.base.ScriptHost`, :class:`~pywsg.device.faults.FaultTarget`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from .axis import POS_EPS, SF_BLOCKED, SPEED_EPS, Axis, AxisEvent, Motion
 from .clock import Clock
 from .faults import Faults, Obstacle
 from .fingers import Finger
+from .health import Health
 from .log import LogLevel, SystemLog
 from .motion import Trajectory
 from .plugins import PLUGINS, FirmwarePlugin
@@ -28,26 +29,22 @@ from .schedule import Schedule
 from .session import Session
 from .settings import Settings
 from .streams import Streams
-from .thermal import FAULT_C, WARNING_C, ThermalModel
+from .thermal import ThermalModel
 
 S = Status
 GS = GripperState
 
 _SF_CMD_FAILURE = int(SystemFlag.SF_CMD_FAILURE)
-_SF_CURR_FAULT = int(SystemFlag.SF_CURR_FAULT)
 _SF_FAST_STOP = int(SystemFlag.SF_FAST_STOP)
 _SF_FINGER_FAULT = int(SystemFlag.SF_FINGER_FAULT)
 _SF_FORCECNTL_MODE = int(SystemFlag.SF_FORCECNTL_MODE)
 _SF_MOVING = int(SystemFlag.SF_MOVING)
 _SF_OVERDRIVE_MODE = int(SystemFlag.SF_OVERDRIVE_MODE)
-_SF_POWER_FAULT = int(SystemFlag.SF_POWER_FAULT)
 _SF_REFERENCED = int(SystemFlag.SF_REFERENCED)
 _SF_SCRIPT_FAILURE = int(SystemFlag.SF_SCRIPT_FAILURE)
 _SF_SCRIPT_RUNNING = int(SystemFlag.SF_SCRIPT_RUNNING)
 _SF_SOFT_LIMIT_MINUS = int(SystemFlag.SF_SOFT_LIMIT_MINUS)
 _SF_SOFT_LIMIT_PLUS = int(SystemFlag.SF_SOFT_LIMIT_PLUS)
-_SF_TEMP_FAULT = int(SystemFlag.SF_TEMP_FAULT)
-_SF_TEMP_WARNING = int(SystemFlag.SF_TEMP_WARNING)
 # plain ints for the hot paths (comparing with an IntEnum member looks it up on the class each time)
 _ID_SYSTEM_STATE = 0x40
 _ID_GRIPPER_STATE = 0x41
@@ -99,8 +96,7 @@ class DeviceCore:
     tag: str | None
     fingers: list[Finger]
     thermal: ThermalModel
-    power_fault: bool
-    current_fault: bool
+    health: Health
     script_if: int
     script_of: int
     script_failure: bool
@@ -115,7 +111,6 @@ class DeviceCore:
         self._plugin_cmds: dict[int, FirmwarePlugin] = {}
         self._event: AxisEvent | None = None
         self._bits = 0  # latched device flags: FAST_STOP, CMD_FAILURE
-        self._temp_state = 0  # 0 normal, 1 warning, 2 fault
 
     # ------------------------------------------------------------------ the axis' values, as before the split
 
@@ -156,6 +151,16 @@ class DeviceCore:
         return self.axis.obstacles
 
     @property
+    def power_fault(self) -> bool:
+        """SF_POWER_FAULT is raised (fault injection)."""
+        return self.health.power_fault
+
+    @property
+    def current_fault(self) -> bool:
+        """SF_CURR_FAULT is raised (fault injection)."""
+        return self.health.current_fault
+
+    @property
     def stats(self) -> list[int]:
         """42h gripping statistics: grips, no part, part lost."""
         return self.axis.stats
@@ -173,10 +178,9 @@ class DeviceCore:
         self._event = self.axis.next_event(now)
         t = self._event[0] if self._event is not None else math.inf
         t = min(t, self.schedule.next_timer())
-        for th in (WARNING_C, FAULT_C):
-            c = self.thermal.crossing(th, now)
-            if c is not None and c < t:
-                t = c
+        c = self.health.next_crossing(now)
+        if c is not None and c < t:
+            t = c
         self.schedule.next_event = t
         self.schedule.due_valid = False
 
@@ -228,7 +232,7 @@ class DeviceCore:
 
     def motion_locked(self) -> bool:
         """FAST STOP, a temperature fault or a power/current fault forbids any motion."""
-        return bool(self._bits & _SF_FAST_STOP) or self._temp_state >= 2 or self.power_fault or self.current_fault
+        return bool(self._bits & _SF_FAST_STOP) or self.health.locked()
 
     def motion_denied(self, now: float, need_reference: bool = True,
                       replaces: tuple[str, ...] = ()) -> Status | None:
@@ -319,14 +323,7 @@ class DeviceCore:
         if axis.gstate in (GS.GRIPPING, GS.HOLDING) and any(
                 fg.type == FingerType.WSG_FMF and fg.powered and not fg.fault for fg in self.fingers):
             f |= _SF_FORCECNTL_MODE
-        if self._temp_state >= 1:
-            f |= _SF_TEMP_WARNING
-        if self._temp_state >= 2:
-            f |= _SF_TEMP_FAULT
-        if self.power_fault:
-            f |= _SF_POWER_FAULT
-        if self.current_fault:
-            f |= _SF_CURR_FAULT
+        f |= self.health.flag_bits()
         f0, f1 = self.fingers
         if f0.fault or f0.comm_fault or f1.fault or f1.comm_fault:
             f |= _SF_FINGER_FAULT
@@ -417,7 +414,7 @@ class DeviceCore:
         """Acknowledge (24h / fieldbus ACK). E_ACCESS_DENIED while a power or current fault persists."""
         now = self.clock()
         self.advance(now)
-        if self.power_fault or self.current_fault:
+        if self.health.power_fault or self.health.current_fault:
             return S.E_ACCESS_DENIED
         if self._bits & _SF_FAST_STOP:
             self._bits &= ~_SF_FAST_STOP
@@ -426,23 +423,14 @@ class DeviceCore:
         return S.E_SUCCESS
 
     def _update_temp_flags(self, now: float) -> None:
-        temp = self.thermal.temperature(now)
-        state = 2 if temp >= FAULT_C else 1 if temp >= WARNING_C else 0
-        if state == self._temp_state:
-            return
-        old = self._temp_state
-        self._temp_state = state
-        if state == 2 and old < 2:
-            self.log.add(now, LogLevel.ERROR, "temperature fault: motion disabled")
+        old = self.health.temp_state
+        if self.health.update_temperature(now):  # a temperature fault began: a running motion ends
             axis = self.axis
             if axis.motion is not None or (axis.contact is not None and axis.contact.kind != "hold"):
                 self.abort_motion(S.E_CMD_ABORTED, now)
                 axis.gstate = GS.ERROR
-        elif state == 1 and old == 0:
-            self.log.add(now, LogLevel.WARNING, "temperature warning")
-        elif state < old:
-            self.log.add(now, LogLevel.INFO, "temperature back below threshold")
-        self.changed()
+        if self.health.temp_state != old:
+            self.changed()
 
     def heat(self, delta_c: float) -> None:
         now = self.clock()
@@ -455,14 +443,14 @@ class DeviceCore:
 
     def set_power_fault(self, on: bool) -> None:
         """SF_POWER_FAULT: raising it raises FAST STOP; 24h is refused while it persists."""
-        if self._fault_changed(on, self.power_fault):
-            self.power_fault = on
+        if self._fault_changed(on, self.health.power_fault):
+            self.health.power_fault = on
             self._fault_raised(on, "power supply out of range", "power supply back in range")
 
     def set_current_fault(self, on: bool) -> None:
         """SF_CURR_FAULT: raising it raises FAST STOP; 24h is refused while it persists."""
-        if self._fault_changed(on, self.current_fault):
-            self.current_fault = on
+        if self._fault_changed(on, self.health.current_fault):
+            self.health.current_fault = on
             self._fault_raised(on, "motor current fault", "motor recovered")
 
     def _fault_changed(self, on: bool, old: bool) -> bool:

@@ -36,6 +36,7 @@ from .clock import Clock, monotonic_clock
 from .core import DeviceCore, Snapshot
 from .fingers import Finger
 from .handlers import HANDLERS, length_error, request_size
+from .health import Health
 from .log import LogLevel
 from .profiles import get_profile
 from .session import Deliver, Session
@@ -109,12 +110,10 @@ class VirtualGripper(DeviceCore):
         self._bits = 0
         self.tag = None
         self.fingers = [Finger.of(settings.finger1), Finger.of(settings.finger2)]
-        self.power_fault = False
-        self.current_fault = False
+        self.health = Health(self.thermal, self.log)
         self.script_if = 0
         self.script_of = 0
         self.script_failure = False
-        self._temp_state = 0
         self.schedule.next_event = math.inf
         self.schedule.due_valid = False
         for name in list(self.plugins):

@@ -26,7 +26,7 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any, TypeVar
 
-from ..device import ManualClock
+from ..device import ManualClock, Settings, VirtualGripper
 from ..server.sim import SimGripper, SimOptions, SimServer
 from .scenario import Scenario, ScenarioRunner, drive_realtime, tap
 from .world import apply, world_state
@@ -133,6 +133,17 @@ class World:
         return self._host.call(lambda: _step(sg, clock, clock.now + dt, runner))
 
 
+def _settings_factory(given: dict[str, Any] | Settings) -> Callable[[str, Any, Any], Any]:
+    """A SimServer factory that starts each gripper with ``given`` settings (validated now)."""
+    base = given if isinstance(given, Settings) else Settings().updated(**given)
+    base.validate()
+
+    def make(model: str, _file_settings: Any, clock: Any) -> VirtualGripper:
+        return VirtualGripper(model, settings=base, **({"clock": clock} if clock is not None else {}))
+
+    return make
+
+
 def _cancel(task: asyncio.Task[None]) -> None:
     task.cancel()
 
@@ -200,6 +211,8 @@ class SimThread:
     Keyword arguments are :class:`~pywsg.server.SimOptions` fields (ports: 0 any free port, None off;
     default TCP and UDP on free loopback ports, UDP replies to the sender's port), plus
 
+    - ``settings``: a settings file (Path), a :class:`~pywsg.device.Settings`, or a dict of its
+      fields (``{"crc_check": False}``) applied to the defaults;
     - ``clock="manual"``: a :class:`~pywsg.device.ManualClock` (time moves only with
       ``world.advance(dt)``); a clock object is taken as it is; default real time;
     - ``scenario``: a TOML file or :class:`~pywsg.testing.scenario.Scenario` run on every gripper;
@@ -210,6 +223,10 @@ class SimThread:
 
     def __init__(self, options: SimOptions | None = None, *, loop: LoopThread | None = None,
                  scenario: str | Path | Scenario | None = None, **overrides: Any) -> None:
+        settings = overrides.get("settings")
+        if isinstance(settings, dict | Settings):
+            overrides["settings"] = None
+            overrides["factory"] = _settings_factory(settings)
         clock = overrides.get("clock")
         if clock == "manual":
             overrides["clock"] = ManualClock()

@@ -11,6 +11,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``interface_page`` Settings → Command Interface (stored interface and network values)
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
+- ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
 
 Units everywhere: mm, mm/s, mm/s², N, °C. See docs/web.md for the API and the security rules.
@@ -51,6 +52,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     auth.router,
     api.router,
     sim_api.router,
+    world_api.router,
     live.router,
     scripting.router,
     docs_pages.router,
@@ -89,7 +91,6 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
     auth.install_guard(app, ctx)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
-    app.include_router(world_api.router)  # world control for scripts (wsg world, curl, pywsg.testing)
     return app
 
 

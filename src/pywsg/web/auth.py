@@ -61,7 +61,7 @@ def install_guard(app: FastAPI, ctx: WebContext) -> None:
     async def _check(request: Request, s: WebSession,
                      call_next: Callable[[Request], Awaitable[Response]]) -> Response:
         path = request.url.path
-        if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules (world_api.guard)
+        if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules
             return world_api.guard(request, ctx.auth) or await call_next(request)
         public = path.startswith("/static/") or path == "/login"
         if not public and not ctx.auth.may_read(s):

@@ -29,25 +29,25 @@ import base64
 import binascii
 import hmac
 import json
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
 from ..testing.world import WorldError, apply, world_state
+from .context import WebContext, error
 from .security import Auth, is_loopback_host
 
 PREFIX = "/api/world"
 MAX_BODY = 4096
-router = APIRouter(prefix=PREFIX)
 
 
 def _error(status: int, detail: str, errors: dict[str, str] | None = None) -> JSONResponse:
-    body: dict[str, Any] = {"detail": detail}
-    if errors is not None:
-        body["errors"] = errors
-    headers = {"WWW-Authenticate": 'Bearer realm="wsg"'} if status == 401 else None
-    return JSONResponse(body, status_code=status, headers=headers)
+    response = error(status, detail, errors)
+    if status == 401:
+        response.headers["WWW-Authenticate"] = 'Bearer realm="wsg"'
+    return response
 
 
 def _host_name(host_header: str) -> str:
@@ -96,11 +96,7 @@ def guard(request: Request, auth: Auth) -> JSONResponse | None:
     return None
 
 
-def _gripper(request: Request) -> Any:
-    return request.app.state.ctx.gripper
-
-
-async def _do(request: Request, action: str, with_body: bool) -> JSONResponse:
+async def _do(gripper: Any, request: Request, action: str, with_body: bool) -> JSONResponse:
     params: dict[str, Any] = {}
     if with_body:
         raw = await request.body()
@@ -110,44 +106,39 @@ async def _do(request: Request, action: str, with_body: bool) -> JSONResponse:
             return _error(422, "invalid input: body is not JSON", {"_": "not JSON"})
         if not isinstance(params, dict):
             return _error(422, "invalid input: body must be a JSON object", {"_": "not an object"})
-    g = _gripper(request)
     try:
-        text = apply(g, action, params)
+        text = apply(gripper, action, params)
     except WorldError as exc:
         return _error(422, f"invalid input: {exc}", {exc.field: exc.reason})
-    return JSONResponse({"ok": True, "action": text, "state": world_state(g)})
+    return JSONResponse({"ok": True, "action": text, "state": world_state(gripper)})
 
 
-@router.get("")
-async def state(request: Request) -> JSONResponse:
-    return JSONResponse(world_state(_gripper(request)))
+# method, path, world action (pywsg.testing.world.apply), whether it takes a JSON body
+_ROUTES = (
+    ("POST", "/part", "part", True),
+    ("DELETE", "/part", "remove_part", False),
+    ("POST", "/block", "block", True),
+    ("DELETE", "/block", "unblock", False),
+    ("POST", "/fault", "fault", True),
+    ("POST", "/heat", "heat", True),
+)
 
 
-@router.post("/part")
-async def place_part(request: Request) -> JSONResponse:
-    return await _do(request, "part", True)
+def router(ctx: WebContext) -> APIRouter:
+    """GET /api/world and the world actions (access: :func:`guard`, applied by the auth middleware)."""
+    r = APIRouter(prefix=PREFIX)
 
+    @r.get("")
+    async def state() -> JSONResponse:
+        return JSONResponse(world_state(ctx.gripper))
 
-@router.delete("/part")
-async def remove_part(request: Request) -> JSONResponse:
-    return await _do(request, "remove_part", False)
+    def make(action: str, with_body: bool) -> Callable[[Request], Awaitable[JSONResponse]]:
+        async def endpoint(request: Request) -> JSONResponse:
+            return await _do(ctx.gripper, request, action, with_body)
 
+        endpoint.__name__ = f"world_{action}"
+        return endpoint
 
-@router.post("/block")
-async def block(request: Request) -> JSONResponse:
-    return await _do(request, "block", True)
-
-
-@router.delete("/block")
-async def unblock(request: Request) -> JSONResponse:
-    return await _do(request, "unblock", False)
-
-
-@router.post("/fault")
-async def fault(request: Request) -> JSONResponse:
-    return await _do(request, "fault", True)
-
-
-@router.post("/heat")
-async def heat(request: Request) -> JSONResponse:
-    return await _do(request, "heat", True)
+    for method, path, action, with_body in _ROUTES:
+        r.add_api_route(path, make(action, with_body), methods=[method])
+    return r
