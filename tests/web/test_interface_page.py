@@ -23,7 +23,7 @@ from pywsg.fieldbus.controller import FieldbusController
 from pywsg.web.app import create_app
 from pywsg.web.interface_page import InterfaceConfig, store_path
 
-from .conftest import LiveSim, wait_for
+from .conftest import ARTIFACTS, LiveSim, wait_for
 
 DEFAULTS = dataclasses.asdict(InterfaceConfig())
 
@@ -146,6 +146,7 @@ def test_command_interface_page_stores_values_with_notes(sim: LiveSim, page: Any
     assert page.input_value("#if-interface") == "profinet"
     assert page.input_value("#if-profinet_name") == "wsg50-cell1"
     assert page.input_value("#if-ip_address") == "192.168.1.30"
+    page.screenshot(path=str(ARTIFACTS / "command-interface.png"), full_page=True)
     # the Fieldbus Monitor shows the stored station address and the bus state
     page.goto(sim.url + "/diagnosis/fieldbus")
     page.wait_for_function("document.getElementById('fb-station').textContent.startsWith('12 ')")
