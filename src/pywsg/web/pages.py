@@ -14,14 +14,16 @@ from string import Template
 from urllib.parse import quote
 
 from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import HTMLResponse, PlainTextResponse, Response
 
 from .. import __version__
-from .context import WebContext
+from .context import WebContext, error
+from .reference import command_reference_html
 from .security import CSRF_FIELD, WebSession
 
 HERE = Path(__file__).resolve().parent
 TEMPLATES = HERE / "templates"
+PROJECT_DOCS = HERE.parents[2] / "docs"  # source checkout only; the Help page says when missing
 
 MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
@@ -82,8 +84,14 @@ def render_page(ctx: WebContext, request: Request, path: str, title: str, body_t
     return HTMLResponse(page, headers={"Cache-Control": "no-store"})
 
 
+def doc_files() -> list[str]:
+    if not PROJECT_DOCS.is_dir():
+        return []
+    return sorted(p.name for p in PROJECT_DOCS.glob("*.md") if p.is_file())
+
+
 def router(ctx: WebContext) -> APIRouter:
-    """The pages of ``PAGES`` (Help and the project docs: ``docs_pages``)."""
+    """The pages of ``PAGES``, Help and the project docs."""
     r = APIRouter(include_in_schema=False)
 
     def make(path: str, title: str, tpl: str, script: str) -> Callable[[Request], Awaitable[HTMLResponse]]:
@@ -96,5 +104,20 @@ def router(ctx: WebContext) -> APIRouter:
 
     for path, (title, tpl, script) in PAGES.items():
         r.add_api_route(path, make(path, title, tpl, script), methods=["GET"], response_class=HTMLResponse)
+
+    @r.get("/help", response_class=HTMLResponse)
+    async def help_page(request: Request) -> HTMLResponse:
+        files = doc_files()
+        docs = "".join(f"<li><a href='/docs/{escape(n)}'>{escape(n)}</a></li>" for n in files) or \
+            "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
+        return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
+                           reference=command_reference_html())
+
+    @r.get("/docs/{name}", response_class=PlainTextResponse)
+    async def doc_file(name: str) -> Response:
+        if name not in doc_files():  # only listed files: no path traversal
+            return error(404, f"no document {name!r}")
+        return PlainTextResponse((PROJECT_DOCS / name).read_text(encoding="utf-8"),
+                                 media_type="text/markdown; charset=utf-8")
 
     return r
