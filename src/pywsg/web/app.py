@@ -6,7 +6,6 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``context``  the shared state: the web's own device session, the log feed, error style
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
-- ``scripting`` the Scripting page (firmware plugins)
 - ``interface_page`` Settings → Command Interface (stored interface and network values)
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``sim_api``  fault injection under /api/sim (Simulation page)
@@ -36,7 +35,7 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from .. import __version__
-from . import api, auth, interface_page, live, pages, scripting, sim_api, world_api
+from . import api, auth, interface_page, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -53,7 +52,6 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     sim_api.router,
     world_api.router,
     live.router,
-    scripting.router,
     interface_page.router,
 ]
 

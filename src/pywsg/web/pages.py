@@ -29,7 +29,6 @@ MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
     ("Settings", [("/settings/interface", "Command Interface"), ("/settings/motion", "Motion Configuration")]),
     ("Diagnosis", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
-    ("Scripting", [("/scripting", "Scripting")]),
     ("Simulation", [("/simulation", "Simulation")]),
     ("Help", [("/help", "Documentation")]),
 ]
