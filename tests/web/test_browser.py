@@ -25,7 +25,8 @@ pytestmark = pytest.mark.browser
 
 PAGES = {
     "/": "Control Panel", "/settings/interface": "Command Interface", "/settings/motion": "Motion Configuration",
-    "/diagnosis/log": "System Log", "/diagnosis/fieldbus": "Fieldbus Monitor", "/simulation": "Simulation",
+    "/diagnosis/log": "System Log", "/diagnosis/fieldbus": "Fieldbus Monitor", "/scripting": "Scripting",
+    "/simulation": "Simulation",
     "/help": "Documentation",
 }
 

@@ -55,7 +55,8 @@ def test_values_are_stored_beside_the_settings_file_and_survive_a_restart(sim: L
     sim.call(lambda: sim.gripper.settings.save(sim.settings_path))
     Settings.load(sim.settings_path)
     # a new web interface on the same settings file shows the stored values
-    fresh = TestClient(create_app(VirtualGripper("wsg50", settings=Settings()), settings_path=sim.settings_path))
+    fresh = TestClient(create_app(VirtualGripper("wsg50", settings=Settings()), settings_path=sim.settings_path),
+                       base_url="http://127.0.0.1")
     assert fresh.get("/api/interface").json()["values"] == {**DEFAULTS, **change}
 
 
@@ -109,7 +110,7 @@ def test_bus_state_follows_a_real_modbus_master(sim: LiveSim, api: httpx.Client)
 
 def test_bus_state_without_a_modbus_server_is_offline() -> None:
     g = VirtualGripper("wsg50", settings=Settings())
-    c = TestClient(create_app(g, fieldbus=FieldbusController(g)))
+    c = TestClient(create_app(g, fieldbus=FieldbusController(g)), base_url="http://127.0.0.1")
     bus = c.get("/api/fieldbus").json()["bus"]
     assert bus["state"] == "offline" and bus["masters"] == 0
 

@@ -26,11 +26,10 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse, JSONResponse, Response
+from fastapi.responses import JSONResponse, Response
 
 from ..fieldbus.profibus import DEFAULT_STATION_ADDRESS
 from .context import WebContext, error
-from .pages import render_page
 
 log = logging.getLogger(__name__)
 
@@ -181,7 +180,7 @@ def store_path(settings_path: Path | None) -> Path | None:
 
 
 def router(ctx: WebContext) -> APIRouter:
-    """``GET /settings/interface`` (page), ``GET`` and ``POST /api/interface``."""
+    """``GET`` and ``POST /api/interface`` (the panel of ``templates/interface_panels.html``)."""
     r = APIRouter()
     store = InterfaceStore(store_path(ctx.settings_path))
 
@@ -190,11 +189,6 @@ def router(ctx: WebContext) -> APIRouter:
                 "max_station_address": MAX_STATION,
                 "stored_in": str(store.path) if store.path else None, "problem": store.problem,
                 "serving": ctx.sim_info}
-
-    @r.get("/settings/interface", response_class=HTMLResponse, include_in_schema=False)
-    async def page(request: Request) -> HTMLResponse:
-        return render_page(ctx, request, "/settings/interface", "Command Interface", "interface.html", "settings",
-                           group="interface")
 
     @r.get("/api/interface")
     async def get_interface() -> dict[str, Any]:
