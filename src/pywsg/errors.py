@@ -181,11 +181,30 @@ _BY_STATUS: dict[int, type[WsgError]] = {
 }
 
 
+# Faults that make the gripper refuse 24h while they persist (000 §3.2.5: acknowledge "after fixing
+# the corresponding error cause"), named in the error instead of "acknowledge first".
+_ACK_BLOCKERS = (
+    (SystemFlag.SF_POWER_FAULT, "a power fault (SF_POWER_FAULT: supply voltage out of range)"),
+    (SystemFlag.SF_CURR_FAULT, "a motor current fault (SF_CURR_FAULT)"),
+)
+
+
+def _ack_refused(flags: SystemFlag | None) -> str:
+    found = [text for flag, text in _ACK_BLOCKERS if flags is not None and flags & flag]
+    if not found:
+        return "acknowledge refused: the fault that caused the FAST STOP persists; fix its cause first"
+    return f"acknowledge refused while {' and '.join(found)} persists; fix its cause, then acknowledge"
+
+
 def error_for(status: Status | int, command: int | None, flags: SystemFlag | None = None,
               detail: str = "") -> WsgError:
     """The most specific exception for a status the gripper answered to ``command``."""
     cls = _BY_STATUS.get(int(status), WsgError)
-    if cls is AccessDeniedError and flags is not None and flags & SystemFlag.SF_FAST_STOP:
+    if cls is AccessDeniedError and command == Command.ACK_FAST_STOP:
+        if flags is not None and flags & SystemFlag.SF_FAST_STOP:
+            cls = FastStopError
+        detail = detail or _ack_refused(flags)
+    elif cls is AccessDeniedError and flags is not None and flags & SystemFlag.SF_FAST_STOP:
         cls = FastStopError
         detail = detail or "the gripper is in FAST STOP; call acknowledge() first"
     elif cls is CommandFailedError and command == Command.GRIP_PART:

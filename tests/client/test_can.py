@@ -154,12 +154,10 @@ def test_a_lost_request_fragment_fails_that_call_only(can_sim: tuple[SimThread, 
         with pytest.raises(WsgError):  # the device waits for bytes that never come: no reply in time
             g.loop(bytes(40))
         assert drop.dropped == 1
-        for _ in range(3):  # the parser resynchronises on the next preamble; late replies are absorbed
-            try:
-                g.info()
-                break
-            except WsgError:
-                pass
+        # the next request's bytes complete the truncated frame, which fails its CRC (the device answers
+        # E_CHECKSUM_ERROR, absorbed by the timed-out call's ghost); the parser resynchronises on the
+        # next preamble inside it, so this call is answered
+        assert g.info().serial_number >= 0
         assert g.loop(b"after") == b"after"
         assert g.info().serial_number == g.info().serial_number
 
@@ -247,16 +245,17 @@ def _vcan() -> str | None:
 
 
 VCAN = _vcan()
-VCAN_REASON = ("no vcan interface is up on this machine: the kernel has no vcan module or this user may not "
-               "create one (`ip link add vcan0 type vcan` needs CAP_NET_ADMIN: 'Unknown device type' here)")
+VCAN_REASON = ("no vcan interface is up on this machine (kernel module vcan "
+               f"{'loaded' if Path('/sys/module/vcan').exists() else 'not loaded'}); create one as root: "
+               "`ip link add vcan0 type vcan && ip link set vcan0 up`")
 
 
 @pytest.mark.skipif(VCAN is None, reason=VCAN_REASON)
 def test_driver_and_sim_in_separate_processes_over_vcan(tmp_path: Path) -> None:
     assert VCAN is not None
     wsg = Path(sys.executable).with_name("wsg")
-    sim = subprocess.Popen([str(wsg), "sim", "--tcp-port", "0", "--udp-port", "0", "--serial", "off",
-                            "--web-port", "0", "--can", VCAN, "--can-interface", "socketcan"],
+    sim = subprocess.Popen([str(wsg), "sim", "--tcp-port", "off", "--udp-port", "off", "--serial", "off",
+                            "--web-port", "off", "--can", VCAN, "--can-interface", "socketcan"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert sim.stdout is not None
@@ -270,11 +269,6 @@ def test_driver_and_sim_in_separate_processes_over_vcan(tmp_path: Path) -> None:
     finally:
         sim.terminate()
         sim.wait(10)
-
-
-def test_vcan_check_states_its_reason() -> None:
-    """Where vcan is missing the cross-process test above is skipped with this reason, not silently."""
-    assert VCAN is not None or "CAP_NET_ADMIN" in VCAN_REASON
 
 
 def test_the_wsg_cli_takes_a_can_url(can_sim: tuple[SimThread, str]) -> None:

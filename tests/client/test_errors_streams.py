@@ -233,3 +233,23 @@ async def test_auto_reconnect_async(sim: SimThread) -> None:
     assert sample.command == Command.GET_GRIPPER_STATE
     await stream.close()
     await g.close()
+
+
+@pytest.mark.parametrize(("fault", "named"), [
+    ("power_fault", "a power fault (SF_POWER_FAULT"),
+    ("current_fault", "a motor current fault (SF_CURR_FAULT)"),
+])
+def test_acknowledge_refused_names_the_fault_that_blocks_it(sim: SimThread, fault: str, named: str) -> None:
+    """000 §3.2.5: a FAST STOP is acknowledged "after fixing the corresponding error cause". While a power
+    or current fault persists 24h is refused (E_ACCESS_DENIED): the error names that fault, it does not
+    tell the user to acknowledge (issue 13 item 13)."""
+    with Gripper(sim.url("tcp")) as g:
+        sim.call(lambda: getattr(sim.device.faults, fault)(True))
+        with pytest.raises(FastStopError) as ei:
+            g.acknowledge()
+        msg = str(ei.value)
+        assert named in msg and "fix its cause" in msg and "acknowledge() first" not in msg
+        assert ei.value.status == Status.E_ACCESS_DENIED and ei.value.command_id == Command.ACK_FAST_STOP
+        sim.call(lambda: getattr(sim.device.faults, fault)(False))
+        g.acknowledge()  # the cause is gone: accepted
+        assert SystemFlag.SF_FAST_STOP not in g.system_state()

@@ -362,3 +362,17 @@ def test_plots_show_no_position_before_homing_and_round_nonnegative_ticks(fresh_
     ticks = page.evaluate("WSG.plots.width.ticks")
     assert min(ticks) >= 0 and max(ticks) >= 110, ticks
     api.close()
+
+
+def test_fast_stop_is_announced_to_screen_readers(fresh_sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 14: state and FAST STOP changes reach the aria-live region."""
+    sim = fresh_sim
+    page.goto(sim.url + "/")
+    live(page)
+    assert page.get_attribute("#announce", "aria-live") == "polite"
+    api = client_for(sim)
+    assert api.post("/api/fast-stop").status_code == 200
+    page.wait_for_function("document.getElementById('announce').innerText.includes('FAST STOP active')")
+    assert api.post("/api/ack").status_code == 200
+    page.wait_for_function("!document.getElementById('announce').innerText.includes('FAST STOP')")
+    api.close()

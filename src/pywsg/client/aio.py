@@ -6,6 +6,7 @@ import asyncio
 import builtins
 import logging
 import time
+import warnings
 from collections.abc import AsyncIterator, Callable
 from types import TracebackType
 from typing import Any, TypeVar
@@ -22,7 +23,7 @@ from ..protocol import (
     SystemFlag,
     parse_datagram,
 )
-from . import calls
+from . import calls, lifetime
 from .aio_commands import AsyncCommands, AsyncFinger
 from .aio_handles import AsyncMotion, AsyncStream, AWaiter
 from .aio_transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
@@ -80,6 +81,7 @@ class AsyncGripper(AsyncCommands):
         self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
         self._streams: dict[Command, list[AsyncStream]] = {}
         self._closing = False
+        self._opened_by = 0  # pid that connected it (lifetime)
         self._reconnect_task: asyncio.Task[None] | None = None
         # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
         # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
@@ -141,11 +143,14 @@ class AsyncGripper(AsyncCommands):
                                                                 self.connect_timeout)
         except (OSError, builtins.TimeoutError) as exc:
             raise ConnectionLostError(f"cannot connect to {ep}: {exc or type(exc).__name__}") from exc
+        lifetime.opened(self)
         log.debug("connected to %s", ep)
 
     async def close(self) -> None:
-        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close."""
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
+        A gripper still open when the interpreter exits is announced then (see docs/driver.md)."""
         self._closing = True
+        lifetime.closed(self)
         if self._reconnect_task is not None:
             self._reconnect_task.cancel()
             self._reconnect_task = None
@@ -158,6 +163,27 @@ class AsyncGripper(AsyncCommands):
             except WsgError as exc:
                 log.debug("disconnect announcement: %s", exc)
         self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
+
+    def _close_at_exit(self) -> None:
+        """No event loop runs any more: write 07h on the socket directly, without waiting for the reply."""
+        t, self._transport = getattr(self, "_transport", None), None
+        if t is None:
+            return
+        self._closing = True
+        if self.endpoint.scheme == "tcp":
+            lifetime.announce_on_socket(t.raw_socket())
+        try:
+            t.close()
+        except RuntimeError:  # the loop is closed: the socket goes with the process
+            pass
+
+    def __del__(self) -> None:
+        if getattr(self, "_transport", None) is None or not lifetime.owned(self):
+            return
+        warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
+                      "await close() or use 'async with AsyncGripper(...) as g'", ResourceWarning, stacklevel=1,
+                      source=self)
+        self._close_at_exit()
 
     def _drop_transport(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with

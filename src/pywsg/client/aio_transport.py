@@ -37,6 +37,10 @@ class AsyncTransport:
     def write_frames(self, frames: list[bytes]) -> None:
         self.write(b"".join(frames))
 
+    def raw_socket(self) -> Any:
+        """The OS socket (TCP, UDP), or None."""
+        return None
+
     def close(self) -> None:
         raise NotImplementedError
 
@@ -81,6 +85,9 @@ class TcpTransport(AsyncTransport):
 
     def write(self, data: bytes) -> None:
         self._t.write(data)
+
+    def raw_socket(self) -> Any:
+        return self._t.get_extra_info("socket")
 
     def close(self) -> None:
         self._t.close()

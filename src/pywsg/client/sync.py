@@ -9,9 +9,9 @@ callbacks run on their own thread, so a callback may call the gripper (e.g. ``st
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
@@ -28,7 +28,7 @@ from ..protocol import (
     SystemFlag,
     parse_datagram,
 )
-from . import calls
+from . import calls, lifetime
 from .calls import Call
 from .commlog import RX, TX, CommHook, CommLog, frame_log
 from .core import (
@@ -46,7 +46,7 @@ from .core import (
 )
 from .demux import Demux, Waiter
 from .sync_commands import Commands, Finger
-from .sync_handles import Motion, Stream
+from .sync_handles import Callbacks, Motion, Stream
 from .sync_transport import SyncTransport, open_sync
 from .types import Reply, Sample, State
 from .url import Endpoint, parse_url
@@ -91,9 +91,9 @@ class Gripper(Commands):
         self._streams: dict[Command, list[Stream]] = {}
         self._pump: threading.Thread | None = None
         self._pump_stop = threading.Event()
-        self._cbq: queue.SimpleQueue[tuple[Stream, Sample] | None] = queue.SimpleQueue()
-        self._cb_thread: threading.Thread | None = None
+        self._callbacks = Callbacks()
         self._closing = False
+        self._opened_by = 0  # pid that connected it (lifetime)
         self.on_reconnect: Callable[[SystemFlag], None] | None = None
         self.on_connection_lost: Callable[[BaseException | None], None] | None = None
         self.last_error: BaseException | None = None
@@ -134,11 +134,14 @@ class Gripper(Commands):
             self._partial = False
             self._transport = t
             self._closing = False
+        lifetime.opened(self)
         log.debug("connected to %s", self.endpoint)
 
     def close(self) -> None:
-        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close."""
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
+        A gripper still open when the interpreter exits is closed this way too (see docs/driver.md)."""
         self._closing = True
+        lifetime.closed(self)
         if self._transport is not None and self.endpoint.scheme == "tcp":
             try:
                 self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
@@ -146,11 +149,21 @@ class Gripper(Commands):
                 log.debug("disconnect announcement: %s", exc)
         self._stop_pump()
         self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
-        if self._cb_thread is not None:
-            self._cbq.put(None)
-            if self._cb_thread is not threading.current_thread():
-                self._cb_thread.join(2.0)
-            self._cb_thread = None
+        self._callbacks.stop()
+
+    def _close_at_exit(self) -> None:
+        if self._transport is not None:
+            self.close()
+
+    def __del__(self) -> None:
+        t = getattr(self, "_transport", None)
+        if t is None or not lifetime.owned(self):  # closed, never connected, __init__ failed, or forked
+            return
+        warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
+                      "call close() or use 'with Gripper(...) as g'", ResourceWarning, stacklevel=1, source=self)
+        if self.endpoint.scheme == "tcp":
+            lifetime.announce_on_socket(getattr(t, "sock", None))
+        t.close()
 
     def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
@@ -655,22 +668,7 @@ class Gripper(Commands):
             self._stop_pump()
 
     def _callback(self, stream: Stream, sample: Sample) -> None:
-        if self._cb_thread is None:
-            self._cb_thread = threading.Thread(target=self._run_callbacks, name="pywsg-callbacks", daemon=True)
-            self._cb_thread.start()
-        self._cbq.put((stream, sample))
-
-    def _run_callbacks(self) -> None:
-        while True:
-            item = self._cbq.get()
-            if item is None:
-                return
-            stream, sample = item
-            for cb in stream.callbacks:
-                try:
-                    cb(sample)
-                except Exception:
-                    log.exception("stream callback failed")
+        self._callbacks.put(stream, sample)
 
     def _start_pump(self) -> None:
         if self._pump is not None:

@@ -1,9 +1,11 @@
 """What the blocking driver's calls hand back: :class:`Motion` (a running motion, ``wait=False``)
-and :class:`Stream` (auto-update samples)."""
+and :class:`Stream` (auto-update samples); :class:`Callbacks`, the thread that runs stream callbacks."""
 
 from __future__ import annotations
 
 import collections
+import logging
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -158,3 +160,37 @@ class Stream(Sink):
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+
+class Callbacks:
+    """Runs stream callbacks on their own thread (started with the first sample), so a callback may
+    call the gripper (e.g. ``stop()``) without blocking the thread that reads."""
+
+    def __init__(self) -> None:
+        self._q: queue.SimpleQueue[tuple[Stream, Sample] | None] = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+
+    def put(self, stream: Stream, sample: Sample) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="pywsg-callbacks", daemon=True)
+            self._thread.start()
+        self._q.put((stream, sample))
+
+    def stop(self) -> None:
+        t = self._thread
+        if t is not None:
+            self._q.put(None)
+            if t is not threading.current_thread():
+                t.join(2.0)
+            self._thread = None
+
+    def _run(self) -> None:
+        while True:
+            item = self._q.get()
+            if item is None:
+                return
+            stream, sample = item
+            for cb in stream.callbacks:
+                try:
+                    cb(sample)
+                except Exception:
+                    logging.getLogger("pywsg.client").exception("stream callback failed")

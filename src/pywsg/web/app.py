@@ -9,7 +9,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``help_docs`` the project docs rendered as pages, and the downloads
 - ``interface_page`` Settings → Command Interface: the stored interface and network values
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
-- ``device_api`` identity (50h–52h) and the Motion page's commands (42h, 34h–38h, jog)
+- ``device_api`` identity (50h–52h), the Motion page's commands (42h, 34h–38h, jog), Scripting
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
