@@ -1,7 +1,8 @@
-"""Coverage-guided fuzzing of the frame parser with atheris (run by hand, not in the test suite).
+"""Fuzz the frame parser (command manual 1.2.1 framing), device and client side.
 
     .venv/bin/pip install atheris
     .venv/bin/python fuzz/fuzz_parser.py -max_total_time=60
+    .venv/bin/python fuzz/fuzz_parser.py --hypothesis --examples 5000   # without atheris
 
 Each input is cut into chunks by its first byte and fed to a device-side parser (per-ID SIZE caps)
 and a client-side one. Any exception other than the parser's own events is a finding, and so is a
@@ -11,11 +12,15 @@ buffer that grows past one maximal frame.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-import atheris
+from hypothesis import strategies as st
 
-with atheris.instrument_imports():
-    from pywsg.protocol import MAX_PAYLOAD, FrameParser, parse_datagram
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _harness import instrumented, main
+
+with instrumented(__name__):
+    from pywsg.protocol import MAX_PAYLOAD, FrameParser, encode_frame, parse_datagram
     from pywsg.protocol.catalog import request_max_payload
     from pywsg.protocol.decode import decode_bytes
 
@@ -34,10 +39,13 @@ def test_one_input(data: bytes) -> None:
     decode_bytes(body)
 
 
-def main() -> None:
-    atheris.Setup(sys.argv, test_one_input)
-    atheris.Fuzz()
+_frame = st.builds(lambda cid, payload: encode_frame(cid, payload), st.integers(0, 255), st.binary(max_size=80))
+_forged = st.builds(lambda cid, size: b"\xaa\xaa\xaa" + bytes([cid]) + size.to_bytes(2, "little"),
+                    st.integers(0, 255), st.integers(0, 0xFFFF))
+inputs = st.builds(lambda chunk, parts: bytes([chunk]) + b"".join(parts), st.integers(0, 255),
+                   st.lists(st.one_of(_frame, _forged, st.binary(max_size=40)), max_size=12))
+"""A chunking byte, then frames, forged headers and garbage."""
 
 
 if __name__ == "__main__":
-    main()
+    main(test_one_input, inputs)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -19,6 +20,7 @@ from pywsg.protocol import (
     parse_datagram,
 )
 from pywsg.protocol.catalog import request_max_payload
+from pywsg.protocol.parser import ERROR_CREDIT_BURST, ERROR_EVENT_COST
 
 HOMING_OK = bytes.fromhex("AAAAAA2002000000B3FD")
 
@@ -146,3 +148,69 @@ def test_arbitrary_garbage_is_bounded_and_recovers(garbage_parts, frame, chunk) 
     seen += p.feed(b"\x00" * (MAX_PAYLOAD + 8))
     if request_max_payload(cid) >= len(payload):
         assert Frame(cid, payload) in frames_of(seen)
+
+
+# -- hostile input: bounded work (docs/sim.md "Hostile input", docs/fidelity.md) ----------------
+
+FORGED_1K = b"\xaa\xaa\xaa\x99\x00\x04"  # unknown ID announcing 1 KiB: every 6 bytes a CRC candidate
+
+
+def crc_bytes_counted(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    import pywsg.protocol.parser as parser_module
+
+    counted = [0]
+    real = parser_module.crc16
+
+    def counting(data: bytes | bytearray | memoryview, crc: int = 0xFFFF) -> int:
+        counted[0] += len(data)
+        return real(data, crc)
+
+    monkeypatch.setattr(parser_module, "crc16", counting)
+    return counted
+
+
+def test_forged_header_flood_costs_about_one_crc_byte_per_byte(monkeypatch: pytest.MonkeyPatch) -> None:
+    counted = crc_bytes_counted(monkeypatch)
+    flood = FORGED_1K * 20_000  # 120 KB: ~20,000 candidates of 1 KiB each (~20 MB of CRC before)
+    p = FrameParser(max_payload=request_max_payload)
+    events = [e for i in range(0, len(flood), 4096) for e in p.feed(flood[i : i + 4096])]
+    assert counted[0] <= 2 * len(flood) + ERROR_CREDIT_BURST
+    errors = [e for e in events if isinstance(e, ChecksumMismatch)]
+    assert 0 < len(errors) < 20_000 // 20
+    assert p.suppressed > 15_000
+    # the flood ends: padding completes the waiting header, and a real frame is delivered
+    assert frames_of(p.feed(bytes(2100) + encode_frame(0x20, b"\x01"))) == [Frame(0x20, b"\x01")]
+
+
+def test_every_complete_bad_frame_is_answered_however_many() -> None:
+    """000 §1.2.2: every frame is acknowledged - frames with bad CRCs that do not overlap are frames."""
+    bad = encode_frame(0x06, b"xyz")[:-2] + b"\x00\x00"
+    events = FrameParser().feed(bad * 5000)
+    assert sum(isinstance(e, ChecksumMismatch) for e in events) == 5000
+
+
+def test_honest_stream_with_corrupted_frames_loses_no_answer() -> None:
+    good = encode_frame(0x06, bytes(range(0x20, 0xA0)) * 8)  # 1 KiB payload, no AAh
+    bad = good[:-2] + bytes([good[-2] ^ 1, good[-1]])
+    stream = (bad + good) * 40
+    events = FrameParser().feed_all([stream[i : i + 1500] for i in range(0, len(stream), 1500)])
+    assert sum(isinstance(e, ChecksumMismatch) for e in events) == 40
+    assert len(frames_of(events)) == 40
+
+
+def test_size_too_large_flood_is_answered_rate_limited() -> None:
+    p = FrameParser(max_payload=request_max_payload)
+    events = p.feed(b"\xaa\xaa\xaa\x20\xff\xff" * 20_000)
+    n = sum(isinstance(e, FrameTooLarge) for e in events)
+    assert ERROR_CREDIT_BURST // ERROR_EVENT_COST <= n <= (ERROR_CREDIT_BURST + 120_000) // ERROR_EVENT_COST + 1
+    assert frames_of(p.feed(encode_frame(0x20, b"\x01"))) == [Frame(0x20, b"\x01")]
+
+
+def test_datagram_answers_its_first_frame_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    events = parse_datagram(b"".join(encode_frame(0x06, bytes([i])) for i in range(50)))
+    assert events[0] == Frame(0x06, b"\x00")
+    assert [type(e) for e in events[1:]] == [TrailingBytes]
+    counted = crc_bytes_counted(monkeypatch)
+    events = parse_datagram(FORGED_1K * 10_000)
+    assert sum(not isinstance(e, GarbageSkipped | TrailingBytes) for e in events) == 1
+    assert counted[0] <= 1100  # one candidate checked

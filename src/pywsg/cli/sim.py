@@ -67,6 +67,10 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
+@click.option("--max-modbus-connections", type=click.IntRange(1, 1000), default=32, show_default=True,
+              help="Modbus/TCP masters at a time per gripper; more are refused.")
+@click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
+              help="Open HTTP/WebSocket connections at a time; more are refused.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
@@ -97,6 +101,8 @@ def sim(
     can_interface: str,
     modbus_port: int | None,
     web_port: int | None,
+    max_modbus_connections: int,
+    max_web_connections: int,
     settings_file: Path | None,
     count: int,
     use_uvloop: bool | None,
@@ -111,6 +117,7 @@ def sim(
     Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
     sockets closed). With --count N, gripper i listens on each given port + i.
     """
+    from ..server.limits import Limits
     from ..server.sim import SimError, SimOptions, run_sim
 
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
@@ -145,6 +152,7 @@ def sim(
         web_port=web,
         settings=settings_file,
         count=count,
+        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections),
     )
 
     as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json

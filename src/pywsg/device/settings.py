@@ -7,6 +7,7 @@ start from are here.
 
 from __future__ import annotations
 
+import glob
 import json
 import math
 import os
@@ -18,6 +19,8 @@ from typing import Any
 from .profiles import PROFILES, get_profile
 
 FINGER_TYPES = ("generic", "fmf", "dsa")
+MAX_FILE_BYTES = 64 * 1024
+"""A settings file is ~400 bytes; anything far larger is not one (and is not read into memory)."""
 
 
 class SettingsError(ValueError):
@@ -137,24 +140,54 @@ class Settings:
     def load(cls, path: str | os.PathLike[str]) -> Settings:
         """Read settings from ``path``; a missing file gives the defaults.
 
-        A file that cannot be read or parsed raises :class:`SettingsError` naming the file; it is
-        never overwritten behind the user's back.
+        A file that cannot be read or parsed raises :class:`SettingsError`: one line naming the file
+        and what to do. It is never overwritten behind the user's back. Temporary files a killed
+        save left beside it are removed first (:meth:`clean_temporaries`).
         """
         p = Path(path)
+        cls.clean_temporaries(p)
+        fix = "fix it or move it away to start from the defaults"
         try:
-            text = p.read_text(encoding="utf-8")
+            with p.open("rb") as f:
+                raw = f.read(MAX_FILE_BYTES + 1)
         except FileNotFoundError:
             return cls()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise SettingsError(f"{p}: cannot read settings: {exc}") from None
+        except OSError as exc:
+            raise SettingsError(f"{p}: cannot read settings: {exc.strerror or exc}") from None
+        if len(raw) > MAX_FILE_BYTES:
+            raise SettingsError(f"{p}: not a settings file (over {MAX_FILE_BYTES // 1024} KiB); {fix}") from None
         try:
-            data = json.loads(text)
+            data = json.loads(raw.decode("utf-8"))
+        except UnicodeDecodeError:
+            raise SettingsError(f"{p}: cannot read settings (not UTF-8 text); {fix}") from None
         except json.JSONDecodeError as exc:
-            raise SettingsError(f"{p}: corrupt settings file (not JSON: {exc})") from None
+            raise SettingsError(f"{p}: corrupt settings file (not JSON: {exc}); {fix}") from None
+        except RecursionError:
+            raise SettingsError(f"{p}: corrupt settings file (nested too deeply); {fix}") from None
+        except ValueError as exc:  # e.g. an integer of more than 4300 digits
+            raise SettingsError(f"{p}: corrupt settings file ({str(exc).split(';')[0]}); {fix}") from None
         try:
             return cls.from_dict(data)
         except SettingsError as exc:
-            raise SettingsError(f"{p}: {exc}") from None
+            raise SettingsError(f"{p}: {exc}; {fix}") from None
+
+    @staticmethod
+    def clean_temporaries(path: str | os.PathLike[str]) -> list[Path]:
+        """Remove the temporary files an interrupted :meth:`save` (SIGKILL, power loss) left beside
+        ``path``; returns what was removed. The settings file itself is always whole (rename)."""
+        p = Path(path)
+        removed: list[Path] = []
+        try:
+            leftovers = list(p.parent.glob(f".{glob.escape(p.name)}.*.tmp"))
+        except OSError:
+            return removed
+        for tmp in leftovers:
+            try:
+                tmp.unlink()
+                removed.append(tmp)
+            except OSError:
+                pass
+        return removed
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: a temporary file in the same directory, fsync, then rename over ``path``."""

@@ -4,6 +4,20 @@ Feed it bytes in any chunking; it returns complete :class:`Frame` objects and er
 It skips bytes until a preamble, resynchronises after garbage, never buffers more than one
 maximal frame (SIZE is capped per command ID before anything is waited for), and reports a
 bad checksum as an event naming the command ID so a device can answer E_CHECKSUM_ERROR.
+
+Hostile input costs bounded work. Every ``AA AA AA`` is a candidate header, and checking one means
+a CRC over up to 1 KiB, so a stream of forged headers (``AA AA AA 99 00 04`` repeated) would cost
+~170 CRC bytes per byte received and one error event each. A frame's own bytes pay for checking
+it, so a frame - valid or not - that starts after the last failed one is always checked and reported
+(the manual answers every frame). What costs without paying is a candidate *inside* the span of a
+frame that already failed its checksum (a garbage candidate, checked only so that a forged header
+cannot swallow the frames behind it), and a header whose SIZE is too large (a header, no frame). For
+those the parser keeps an *error credit* (bytes): each byte fed earns one, at most
+:data:`ERROR_CREDIT_BURST` is carried between feeds; such a candidate costs the bytes its CRC covered
+plus :data:`ERROR_EVENT_COST` (the answer's cost). One that cannot be paid for is skipped as garbage
+without a CRC and without an event (counted in :attr:`FrameParser.suppressed`). An honest link, even
+one with corrupted frames, never runs short; a flood of forged headers costs about one CRC byte per
+byte received and is answered about once per ``ERROR_EVENT_COST`` bytes.
 """
 
 from __future__ import annotations
@@ -16,6 +30,11 @@ from .crc import crc16
 from .frame import HEADER_SIZE, MAX_PAYLOAD, OVERHEAD, PREAMBLE, Frame
 
 MaxPayload = Callable[[int], int]
+
+ERROR_CREDIT_BURST = 16 * 1024
+"""Error credit (bytes) a parser may hold: ~15 garbage candidates of maximal size in a row are checked."""
+ERROR_EVENT_COST = 32
+"""Credit (bytes) one paid-for error event costs on top of the CRC work (~ what answering it costs)."""
 
 
 def _default_max(_command_id: int) -> int:
@@ -127,12 +146,16 @@ class FrameParser:
     is taken as garbage before the preamble.
     """
 
-    __slots__ = ("_buf", "max_payload", "verify_checksum")
+    __slots__ = ("_buf", "_credit", "_fail_end", "max_payload", "suppressed", "verify_checksum")
 
     def __init__(self, verify_checksum: bool = True, max_payload: MaxPayload | None = None) -> None:
         self._buf = bytearray()
         self.verify_checksum = verify_checksum
         self.max_payload: MaxPayload = max_payload or _default_max
+        self._credit = ERROR_CREDIT_BURST
+        self._fail_end = 0  # end (in _buf) of the last frame that failed its checksum
+        self.suppressed = 0
+        """Candidate headers skipped unchecked because the error credit was spent (see module doc)."""
 
     @property
     def buffered(self) -> int:
@@ -145,6 +168,7 @@ class FrameParser:
 
     def clear(self) -> None:
         self._buf.clear()
+        self._fail_end = 0
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         buf = self._buf
@@ -154,53 +178,101 @@ class FrameParser:
             if whole is not None:
                 return [whole]
         buf += data
+        events, pos = self._scan(len(data), 0)
+        if pos:
+            del buf[:pos]
+        return events
+
+    def _scan(self, earned: int, stop_after: int) -> tuple[list[Event], int]:
+        """Parse ``self._buf``; returns the events and how many bytes were consumed.
+
+        ``earned``: error credit the new bytes bring. ``stop_after``: stop after this many frames or
+        error events (0: no limit) - a datagram holds one frame.
+        """
+        buf = self._buf
+        credit = min(self._credit, ERROR_CREDIT_BURST) + earned
+        fail_end = self._fail_end
         events: list[Event] = []
+        answered = 0
         pos = 0
+        skipped = 0  # garbage not reported yet: one event per run, not one per candidate
         n = len(buf)
+        max_payload = self.max_payload
         while True:
+            if stop_after and answered >= stop_after:
+                break
             start = buf.find(PREAMBLE, pos)
             if start < 0:
                 # keep up to two trailing AAh: they may begin the next preamble
                 keep = 0
                 while keep < 2 and n - keep > pos and buf[n - keep - 1] == 0xAA:
                     keep += 1
-                skipped = n - keep - pos
-                if skipped:
-                    events.append(GarbageSkipped(skipped))
+                skipped += n - keep - pos
                 pos = n - keep
                 break
             # In a run of AAh the preamble is its last three bytes: no command has ID AAh,
             # so a stray AAh before a frame costs one skipped byte, not a bogus header.
             while start + 3 < n and buf[start + 3] == 0xAA:
                 start += 1
-            if start > pos:
-                events.append(GarbageSkipped(start - pos))
-                pos = start
+            skipped += start - pos
+            pos = start
             if n - pos < HEADER_SIZE:
                 break
             command_id, size = _SIZE.unpack_from(buf, pos + 3)
-            limit = self.max_payload(command_id)
+            limit = max_payload(command_id)
             if size > limit:
-                events.append(FrameTooLarge(command_id, size, limit))
                 pos += 1  # resynchronise on the next preamble
+                if credit < ERROR_EVENT_COST:
+                    self.suppressed += 1
+                    skipped += 1
+                    continue
+                credit -= ERROR_EVENT_COST
+                if skipped:
+                    events.append(GarbageSkipped(skipped))
+                    skipped = 0
+                events.append(FrameTooLarge(command_id, size, limit))
+                skipped = 0
+                answered += 1
                 continue
             end = pos + size + OVERHEAD
             if end > n:
                 break
-            if self.verify_checksum and crc16(memoryview(buf)[pos:end]) != 0:
+            if self.verify_checksum:
+                inside = pos < fail_end  # a garbage candidate: its bytes belong to a failed frame
+                if inside and credit < end - pos + ERROR_EVENT_COST:
+                    # a flood of failing candidates spent the credit: do not CRC what is most
+                    # likely one more forged header (a valid frame after the flood is checked again)
+                    self.suppressed += 1
+                    skipped += 1
+                    pos += 1
+                    continue
                 expected = crc16(memoryview(buf)[pos : end - 2])
                 received = buf[end - 2] | (buf[end - 1] << 8)
                 if expected != received:
+                    if inside:
+                        credit -= end - pos + ERROR_EVENT_COST
+                    if end > fail_end:
+                        fail_end = end
+                    if skipped:
+                        events.append(GarbageSkipped(skipped))
                     events.append(
                         ChecksumMismatch(command_id, bytes(buf[pos + HEADER_SIZE : end - 2]), received, expected)
                     )
+                    answered += 1
+                    skipped = 0
                     pos += 1  # a forged header must not swallow the frames behind it
                     continue
+            if skipped:
+                events.append(GarbageSkipped(skipped))
+                skipped = 0
             events.append(Frame(command_id, bytes(buf[pos + HEADER_SIZE : end - 2])))
+            answered += 1
             pos = end
-        if pos:
-            del buf[:pos]
-        return events
+        if skipped:
+            events.append(GarbageSkipped(skipped))
+        self._credit = max(0, min(credit, ERROR_CREDIT_BURST))
+        self._fail_end = max(0, fail_end - pos)
+        return events, pos
 
     def feed_all(self, chunks: Iterable[bytes]) -> list[Event]:
         out: list[Event] = []
@@ -212,20 +284,28 @@ class FrameParser:
 def parse_datagram(
     data: bytes, verify_checksum: bool = True, max_payload: MaxPayload | None = None
 ) -> list[Event]:
-    """Parse one datagram (UDP: one frame per datagram). Leftovers are reported, never kept."""
+    """Parse one datagram: **one frame per datagram** (UDP). Leftovers are reported, never kept.
+
+    Only the first frame (or the first error: bad CRC, SIZE too large, truncated) is returned; the
+    bytes after it are one :class:`TrailingBytes` event, not parsed. So a datagram gets at most one
+    answer however many frames or forged headers it holds (no amplification), and its cost is one
+    CRC at most.
+    """
     whole = whole_frame(data, verify_checksum, max_payload or _default_max)
     if whole is not None:
         return [whole]
     parser = FrameParser(verify_checksum, max_payload)
-    events = parser.feed(data)
-    rest = parser.pending()
-    frames = [e for e in events if isinstance(e, Frame)]
-    if rest and not frames:
-        cid = rest[3] if len(rest) > 3 else None
+    parser._buf += data
+    events, pos = parser._scan(len(data), stop_after=1)
+    rest = len(data) - pos
+    answered = any(not isinstance(e, GarbageSkipped) for e in events)
+    if rest and not answered:
+        tail = data[pos:]
+        cid = tail[3] if len(tail) > 3 else None
         need = OVERHEAD
-        if len(rest) >= HEADER_SIZE:
-            need = OVERHEAD + (rest[4] | (rest[5] << 8))
-        events.append(Truncated(cid, len(rest), need))
+        if len(tail) >= HEADER_SIZE:
+            need = OVERHEAD + (tail[4] | (tail[5] << 8))
+        events.append(Truncated(cid, len(tail), need))
     elif rest:
-        events.append(TrailingBytes(len(rest)))
+        events.append(TrailingBytes(rest))
     return events

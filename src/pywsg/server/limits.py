@@ -20,6 +20,10 @@ class Limits:
     """Write buffer (bytes) at which reading from that client pauses until it drains."""
     max_connections: int = 16
     """TCP connections held open per server; more are closed at once."""
+    modbus_connections: int = 32
+    """Modbus/TCP masters connected at a time per gripper; more are refused (a PLC needs one or two)."""
+    web_connections: int = 64
+    """HTTP and WebSocket connections open at a time per web interface; more are refused."""
     keepalive_idle: int = 5
     """TCP keepalive: seconds idle before the first probe, then 1 s apart, 3 probes (half-open
     connections of a vanished client are closed after ~8 s)."""

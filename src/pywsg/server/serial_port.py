@@ -7,7 +7,8 @@ path the port is opened through pyserial at ``baudrate`` (8N1, no flow control).
 
 The serial line has one device session. Output the client does not read is kept up to the soft limit;
 above it auto-update packets are dropped, and above the hard limit the oldest output is discarded
-(a serial line cannot be "closed" on a client that stopped reading).
+(a serial line cannot be "closed" on a client that stopped reading) - whole frames only: output
+partly written is finished first, so the reader never sees a torn frame.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ class SerialServer:
         self._serial: Any = None  # pyserial object for a real device
         self._out: deque[bytes] = deque()
         self._out_size = 0
+        self._head_sent = 0  # bytes of the first queued entry already written
         self._writing = False
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -95,22 +97,27 @@ class SerialServer:
         if replies:
             if log.isEnabledFor(logging.INFO):
                 log_replies(log, f"serial {self.path}", replies)
-            self._send(b"".join(f.encode() for f in replies))
+            self._send([f.encode() for f in replies])
 
     def deliver(self, frame: Frame) -> None:
         if droppable(frame.command_id) and self._out_size > self.limits.output_soft:
             self.dropped += 1
             return
-        self._send(frame.encode())
+        self._send([frame.encode()])
 
     @property
     def buffered(self) -> int:
         return self._out_size
 
-    def _send(self, data: bytes) -> None:
+    def _send(self, frames: list[bytes]) -> None:
+        """Write whole frames, queueing what the line does not take now. Above the hard limit
+        queued frames are discarded, oldest first, but never the one partly written: the reader
+        must not see a torn frame."""
         if self._fd < 0:
             return
-        if not self._out:
+        out = self._out
+        if not out:
+            data = frames[0] if len(frames) == 1 else b"".join(frames)
             try:
                 n = os.write(self._fd, data)
             except BlockingIOError:
@@ -120,33 +127,45 @@ class SerialServer:
                 return
             if n == len(data):
                 return
-            data = data[n:]
-        self._out.append(data)
-        self._out_size += len(data)
-        while self._out_size > self.limits.output_hard and len(self._out) > 1:
-            old = self._out.popleft()
-            self._out_size -= len(old)
+            while n >= len(frames[0]):  # frames written whole
+                n -= len(frames[0])
+                frames = frames[1:]
+            self._head_sent = n
+            self._out_size -= n
+        for f in frames:
+            out.append(f)
+            self._out_size += len(f)
+        while self._out_size > self.limits.output_hard:
+            i = 1 if self._head_sent else 0  # the head is on the wire already: finish it
+            if i >= len(out):
+                break
+            self._out_size -= len(out[i])
+            del out[i]
             self.dropped += 1
         if not self._writing and self._loop is not None:
             self._writing = True
             self._loop.add_writer(self._fd, self._on_writable)
 
     def _on_writable(self) -> None:
-        while self._out:
-            chunk = self._out[0]
+        out = self._out
+        while out:
+            chunk = out[0]
+            sent = self._head_sent
             try:
-                n = os.write(self._fd, chunk)
+                n = os.write(self._fd, memoryview(chunk)[sent:])
             except BlockingIOError:
                 return
             except OSError:
-                self._out.clear()
+                out.clear()
                 self._out_size = 0
+                self._head_sent = 0
                 break
             self._out_size -= n
-            if n < len(chunk):
-                self._out[0] = chunk[n:]
+            if sent + n < len(chunk):
+                self._head_sent = sent + n
                 return
-            self._out.popleft()
+            self._head_sent = 0
+            out.popleft()
         self._writing = False
         if self._loop is not None:
             self._loop.remove_writer(self._fd)

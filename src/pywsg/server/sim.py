@@ -243,11 +243,20 @@ class SimServer:
 
     def _load_settings(self) -> Any:
         path = self.options.settings
-        if path is None or not Path(path).exists():
+        if path is None:
+            return None
+        if not Path(path).exists():
+            from ..device import Settings
+
+            Settings.clean_temporaries(path)  # a save killed before its first rename
             return None
         from ..device import Settings
+        from ..device.settings import SettingsError
 
-        return Settings.load(path)
+        try:
+            return Settings.load(path)
+        except SettingsError as exc:
+            raise SimError(str(exc)) from None
 
     async def start(self) -> SimServer:
         opts = self.options
@@ -280,6 +289,7 @@ class SimServer:
             udp_port = _nth(opts.udp_port, i)
             if udp_port is not None:
                 sg.udp = await UdpServer(g, r, opts.host, udp_port, opts.udp_reply_port, opts.limits).start()
+                self._warn_reply_port(sg.udp, i)
         except OSError as exc:
             raise SimError(f"gripper {i}: cannot bind on {opts.host}: {exc.strerror or exc}") from exc
         if opts.serial:
@@ -296,7 +306,8 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port
+                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                max_connections=opts.limits.modbus_connections,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
@@ -305,12 +316,26 @@ class SimServer:
                 "sim_info": sg.info(),
                 "fieldbus": getattr(sg.modbus, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
+                "max_connections": opts.limits.web_connections,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
                 "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
+
+    def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
+        """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
+        opts = self.options
+        reply = opts.udp_reply_port
+        if i != 0 or reply is None or opts.udp_port in (None, 0):
+            return
+        if opts.udp_port <= reply < opts.udp_port + opts.count:
+            log.warning(
+                "UDP reply port %d is gripper %d's own UDP port: a gripper never sends to a UDP port of its "
+                "own process (a reply loop), so UDP clients on this host get no answer; use "
+                "--udp-reply-port 0 (answer the sender's port) or a port outside %d..%d",
+                reply, reply - opts.udp_port, opts.udp_port, opts.udp_port + opts.count - 1)
 
     async def close(self, save: bool = True) -> None:
         """Stop every interface (sockets closed, sessions closed) and save the settings file."""
@@ -328,7 +353,13 @@ class SimServer:
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)
             if settings is not None and hasattr(settings, "save"):
-                settings.save(path)
+                try:
+                    settings.save(path)
+                except OSError as exc:
+                    raise SimError(
+                        f"{path}: cannot save settings: {exc.strerror or exc}; this run's changes are lost "
+                        "(--settings must name a file in a writable directory)"
+                    ) from None
         await asyncio.sleep(0)
 
 

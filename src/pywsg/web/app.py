@@ -165,7 +165,7 @@ def _bind(host: str, port: int) -> socket.socket:
 async def serve_web(gripper: Any, host: str, port: int, *, password: str | None = None, fieldbus: Any = None,
                     sim_info: Any = None, settings_path: str | Path | None = None,
                     ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
-                    allowed_hosts: Sequence[str] = ()) -> WebHandle:
+                    allowed_hosts: Sequence[str] = (), max_connections: int = 64) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -175,6 +175,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     (default: ``gripper.settings_path`` when present). ``ssl_certfile``/``ssl_keyfile``: serve HTTPS.
     ``allowed_hosts``: names besides the bound address, localhost, 127.0.0.1 and [::1] that the
     ``Host`` header may carry (e.g. ``["gripper.cell4.local"]``); others get 400 (DNS rebinding).
+    ``max_connections``: open HTTP/WebSocket connections at a time; more are refused.
     """
     loopback = is_loopback_host(host)
     if not loopback and password is None:
@@ -184,12 +185,14 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
         raise ValueError("password must be 1..256 characters")
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
                      settings_path=settings_path, host=host, allowed_hosts=allowed_hosts)
+    from ..server.conncap import capped_http_protocol
+
     sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
     real_port = int(sock.getsockname()[1])
     config = uvicorn.Config(
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, server_header=False,
+        ws_ping_interval=None, server_header=False, http=capped_http_protocol(max_connections),
     )
     server = _Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")

@@ -1,0 +1,110 @@
+"""Connection caps on the Modbus/TCP and web ports, and the descriptor reserve that keeps the
+command interface accepting (issue: ~1,100 idle connections exhausted ``ulimit -n 1024``)."""
+
+from __future__ import annotations
+
+import resource
+import socket
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+from pywsg.protocol import Frame, Status
+from pywsg.server import Limits
+
+from .conftest import SimThread, TcpClient
+from .test_cli_sim import free_base
+
+MODBUS_READ = struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 2)  # FC4: read 2 input registers at 0
+
+
+def idle(port: int, n: int) -> list[socket.socket]:
+    out = []
+    for _ in range(n):
+        s = socket.create_connection(("127.0.0.1", port), timeout=5)
+        out.append(s)
+    return out
+
+
+def alive(socks: list[socket.socket]) -> int:
+    """Connections the server kept open (a refused one reads EOF or a reset at once)."""
+    time.sleep(0.3)
+    n = 0
+    for s in socks:
+        s.setblocking(False)
+        try:
+            if s.recv(1) == b"":
+                continue
+        except BlockingIOError:
+            n += 1
+        except OSError:
+            continue
+    return n
+
+
+def modbus_answers(port: int) -> bool:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(MODBUS_READ)
+        reply = s.recv(256)
+    return reply[:2] == MODBUS_READ[:2] and reply[7] == 4
+
+
+def web_answers(port: int) -> bool:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(f"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n".encode())
+        reply = s.recv(256)
+    return reply.startswith(b"HTTP/1.1 ")
+
+
+def test_modbus_and_web_are_capped_and_the_command_port_still_answers(
+    sim_factory: Callable[..., SimThread],
+) -> None:
+    sim = sim_factory(tcp_port=0, udp_port=None, modbus_port=0, web_port=0,
+                      limits=Limits(modbus_connections=8, web_connections=8))
+    g = sim.g
+    mb = idle(g.modbus_port, 100)
+    web = idle(g.web_port, 100)
+    assert alive(mb) == 8
+    assert alive(web) == 8
+    c = TcpClient(g.tcp_port)
+    assert c.request(0x06, b"hi").status == Status.E_SUCCESS
+    c.send(Frame(0x07).encode())
+    c.close()
+    for s in mb + web:
+        s.close()
+    time.sleep(0.3)
+    assert modbus_answers(g.modbus_port)  # freed slots are served again
+    assert web_answers(g.web_port)
+
+
+def test_descriptor_reserve_keeps_the_command_port_accepting_under_a_low_ulimit() -> None:
+    """``ulimit -n 256`` and caps far above it: idle web/Modbus connections stop short of the
+    reserve, so the gripper's TCP port still accepts and answers."""
+    base = free_base(3)
+    code = ("import resource; resource.setrlimit(resource.RLIMIT_NOFILE, (256, 256)); "
+            "from pywsg.cli.main import main; main()")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, "sim", "--tcp-port", str(base), "--udp-port", "0", "--serial", "off",
+         "--modbus-port", str(base + 1), "--web-port", str(base + 2),
+         "--max-modbus-connections", "1000", "--max-web-connections", "1000"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        for _ in range(3):
+            assert proc.stdout.readline(), "wsg sim did not start"
+        assert resource.getrlimit(resource.RLIMIT_NOFILE)[0] > 700
+        socks = idle(base + 2, 200) + idle(base + 1, 200)
+        kept = alive(socks)
+        assert 100 < kept < 256 - 32, kept  # up to the reserve, not into it
+        c = TcpClient(base)
+        assert c.request(0x06, b"still here").params == b"still here"
+        c.send(Frame(0x07).encode())
+        c.close()
+        for s in socks:
+            s.close()
+    finally:
+        proc.terminate()
+        proc.wait(10)
