@@ -7,6 +7,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
 - ``help_docs`` the project docs rendered as pages, and the downloads
+- ``interface_page`` Settings → Command Interface: the stored interface and network values
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
 - ``device_api`` identity (50h–52h), the Motion page's commands (42h, 34h–38h, jog), Scripting
 - ``sim_api``  fault injection under /api/sim (Simulation page)
@@ -37,7 +38,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from . import api, auth, device_api, help_docs, live, pages, sim_api, world_api
+from . import api, auth, device_api, help_docs, interface_page, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -56,6 +57,7 @@ ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     sim_api.router,
     world_api.router,
     live.router,
+    interface_page.router,
 ]
 
 
