@@ -376,3 +376,24 @@ def test_fast_stop_is_announced_to_screen_readers(fresh_sim: LiveSim, page: Any)
     assert api.post("/api/ack").status_code == 200
     page.wait_for_function("!document.getElementById('announce').innerText.includes('FAST STOP')")
     api.close()
+
+
+def test_error_after_fast_stop_and_ack_says_how_it_clears(fresh_sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 6 / 001 §41h: grip state ERROR "remains until the next motion command"; after Ack
+    the page says so instead of showing an ERROR with no flag set; a motion command clears it."""
+    sim = fresh_sim
+    page.goto(sim.url + "/")
+    live(page)
+    api = client_for(sim)
+    home(sim, api)
+    assert api.post("/api/fast-stop").status_code == 200
+    page.wait_for_function("document.getElementById('g-state').innerText == 'ERROR'")
+    assert "acknowledge" in page.inner_text("#g-state-note")
+    assert api.post("/api/ack").status_code == 200
+    page.wait_for_function("document.getElementById('g-state-note').innerText.includes('next motion command')")
+    assert page.is_visible("#g-state-note")
+    r = api.post("/api/move", json={"width": 50.0, "speed": 100.0})
+    assert r.status_code in (200, 202), r.text  # 202: E_CMD_PENDING, the motion runs
+    page.wait_for_function("document.getElementById('g-state').innerText != 'ERROR'")
+    assert not page.is_visible("#g-state-note")
+    api.close()

@@ -167,6 +167,15 @@
     document.body.dataset.state = s.state;
     // screen readers hear state changes and FAST STOP (aria-live region), not every number
     const fast = s.flag_names.indexOf("SF_FAST_STOP") >= 0;
+    // 001 §41h: ERROR "remains until the next motion command is received" (after an acknowledge if
+    // FAST STOP is active) — say so, or an ERROR with no flag set looks like a fault nobody can clear
+    const note = document.getElementById("g-state-note");
+    if (note) {
+      note.textContent = s.state !== "ERROR" ? "" : fast
+        ? "FAST STOP: acknowledge (Ack), then any motion command clears ERROR."
+        : "Kept until the next motion command (grip state, 001 §41h).";
+      document.getElementById("g-state-note-row").hidden = s.state !== "ERROR";
+    }
     announce("Gripper state " + s.state + (fast ? ", FAST STOP active" : ""));
   }
 
