@@ -103,6 +103,7 @@ class PageSim:
 
     def __init__(self) -> None:
         self.reply_port = free_port(socket.SOCK_DGRAM)
+        self.proxy_port = free_port()  # the docs' `wsg proxy --listen 2000`
         argv = [str(BIN / "wsg"), "sim", "--json", "--no-uvloop", "--tcp-port", "0", "--udp-port", "0",
                 "--udp-reply-port", str(self.reply_port), "--serial", "off", "--web-port", "0",
                 "--modbus-port", "0"]
@@ -134,6 +135,7 @@ class PageSim:
 
         code = re.sub(r"tcp://(127\.0\.0\.1|localhost):1000\b", rf"tcp://\1:{tcp}", code)
         code = re.sub(r"udp://(?P<host>127\.0\.0\.1|localhost):1500(?P<query>\?[^\s\"'`)]*)?", udp_url, code)
+        code = re.sub(r"(--listen |127\.0\.0\.1:)2000\b", rf"\g<1>{self.proxy_port}", code)  # wsg proxy
         code = re.sub(r"\b5020\b", str(self.port("modbus")), code)
         code = re.sub(r"\b8080\b", str(self.port("web")), code)
         return code.replace(".venv/bin/", f"{BIN}/")
@@ -253,8 +255,11 @@ def test_the_harness_reads_markers_and_rewrites_ports(tmp_path: Path) -> None:
                                                           (10, "", None)]
     sim = PageSim.__new__(PageSim)
     sim.reply_port = 40001
+    sim.proxy_port = 42000
     sim.urls = {"tcp": "tcp://127.0.0.1:41000", "udp": "udp://127.0.0.1:41500?reply_port=40001",
                 "modbus": "modbus-tcp://127.0.0.1:45020", "web": "http://127.0.0.1:48080/"}
     assert sim.rewrite(got[1].code) == 'wsg --url "udp://127.0.0.1:41500?reply_port=40001" state\n'
     assert sim.rewrite("tcp://127.0.0.1:1000 udp://127.0.0.1:1500?reply_port=0 -p 5020 :8080/") == \
         "tcp://127.0.0.1:41000 udp://127.0.0.1:41500?reply_port=0 -p 45020 :48080/"
+    assert sim.rewrite("wsg proxy --listen 2000; wsg --url tcp://127.0.0.1:2000 home; sleep 2000") == \
+        "wsg proxy --listen 42000; wsg --url tcp://127.0.0.1:42000 home; sleep 2000"
