@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -170,18 +171,32 @@ def run_block(block: Block, sim: PageSim, workdir: Path) -> str | None:
         code = "\n".join(": # harness: that wsg sim is already running" if re.match(
             r"\s*(\S*/)?wsg\s+sim\b", line) else line for line in code.splitlines()) + "\n"
         argv = ["bash", "-e", "-o", "pipefail", "-c", code]
-    try:
-        r = subprocess.run(argv, capture_output=True, text=True, timeout=BLOCK_TIMEOUT, env=env, cwd=workdir,
-                           stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired as exc:
-        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else exc.stdout or ""
+    # Output goes to files, not pipes, and the block runs in its own session: when the block ends, whatever
+    # it left running in the background (a `wsg proxy &` of a failed block) is ended with it instead of
+    # holding a pipe open until the timeout.
+    out_path, err_path = workdir / f"block_{block.line}.out", workdir / f"block_{block.line}.err"
+    with out_path.open("w") as out_f, err_path.open("w") as err_f:
+        proc = subprocess.Popen(argv, stdout=out_f, stderr=err_f, env=env, cwd=workdir, stdin=subprocess.DEVNULL,
+                                start_new_session=True)
+        try:
+            returncode: int | None = proc.wait(BLOCK_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            returncode = None
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait()
+    stdout, stderr = out_path.read_text(errors="replace"), err_path.read_text(errors="replace")
+    if returncode is None:
         return (f"{block.where}: ```{block.lang} block still running after {BLOCK_TIMEOUT:g} s\n"
-                f"--- block as run ---\n{_numbered(code)}\n--- stdout ---\n{_tail(out)}")
-    if r.returncode == 0:
+                f"--- block as run ---\n{_numbered(code)}\n--- stdout ---\n{_tail(stdout)}")
+    if returncode == 0:
         return None
-    return (f"{block.where}: ```{block.lang} block failed (exit {r.returncode})\n"
+    return (f"{block.where}: ```{block.lang} block failed (exit {returncode})\n"
             f"--- block as run ---\n{_numbered(code)}\n"
-            f"--- stdout ---\n{_tail(r.stdout)}\n--- stderr ---\n{_tail(r.stderr)}\n"
+            f"--- stdout ---\n{_tail(stdout)}\n--- stderr ---\n{_tail(stderr)}\n"
             "Fix the example, or mark it <!-- not-run: reason --> on the line before if it is an illustration.")
 
 
