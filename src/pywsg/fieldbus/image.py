@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, replace
+
 from ..protocol import GripperState, GState, Status, SystemFlag
 from ..protocol.flags import NamedFlag
 
