@@ -6,6 +6,7 @@ The rules, for whoever writes docs:
   ``bash -e`` with the venv's ``wsg`` first on PATH, one block after the other in the order of the page,
   against one ``wsg sim`` per page started the way the docs start it (defaults: no part between the
   fingers, not referenced at first), like a reader following along in a second terminal.
+* Pages run at once (one thread, sim and directory each); the blocks of a page one after the other.
 * The sim runs on free ports, so the harness rewrites the default ones in each block:
   ``tcp://127.0.0.1:1000``, ``udp://127.0.0.1:1500`` (replies to 1501), the web port 8080 and the
   Modbus port 5020. ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
@@ -30,6 +31,7 @@ import subprocess
 import sys
 import textwrap
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -204,12 +206,24 @@ def _ids(page: Path) -> str:
     return str(page.relative_to(ROOT))
 
 
-@pytest.fixture
-def workdir(tmp_path: Path) -> Iterator[Path]:
+def _workdir(tmp_path: Path) -> Path:
     """Where blocks run: a scratch directory that sees the checkout's docs/ and scripts/."""
     for name in ("docs", "scripts"):
         (tmp_path / name).symlink_to(ROOT / name)
-    yield tmp_path
+    return tmp_path
+
+
+def run_page(page: Path, workdir: Path) -> tuple[int, list[str]]:
+    """Run the page's blocks in order against its own sim: (blocks run, failure reports)."""
+    runnable = [b for b in blocks_of(page) if b.not_run is None and b.lang in RUN_PY | RUN_SH]
+    sim = PageSim()
+    try:
+        return len(runnable), [f for b in runnable if (f := run_block(b, sim, workdir)) is not None]
+    finally:
+        sim.stop()
+
+
+RUN_PAGES = [p for p in PAGES if any(b.not_run is None and b.lang in RUN_PY | RUN_SH for b in blocks_of(p))]
 
 
 @pytest.mark.parametrize("page", PAGES, ids=_ids)
@@ -235,17 +249,27 @@ def test_docs_stand_alone(page: Path) -> None:
     assert not found, "references to files that are not in the repository:\n" + "\n".join(found)
 
 
+@pytest.fixture(scope="module")
+def page_runs(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+              ) -> Iterator[dict[Path, Future[tuple[int, list[str]]]]]:
+    """The selected pages all run at once, each in its own thread with its own sim and directory.
+
+    The blocks mostly wait on motion in real time (a homing, a move at 100 mm/s, a demo cycle), not on
+    the CPU, so the pages overlap instead of queueing: the slowest page sets the time, not their sum.
+    Within a page the blocks still run one after the other, as a reader runs them.
+    """
+    selected = [p for p in RUN_PAGES if any(
+        item.originalname == "test_examples_run_as_written" and item.callspec.params.get("page") == p
+        for item in request.session.items if isinstance(item, pytest.Function) and hasattr(item, "callspec"))]
+    with ThreadPoolExecutor(max_workers=max(1, len(selected))) as pool:
+        yield {p: pool.submit(run_page, p, _workdir(tmp_path_factory.mktemp(p.stem))) for p in selected}
+
+
 @pytest.mark.realtime
-@pytest.mark.parametrize("page", [p for p in PAGES if any(
-    b.not_run is None and b.lang in RUN_PY | RUN_SH for b in blocks_of(p))], ids=_ids)
-def test_examples_run_as_written(page: Path, workdir: Path) -> None:
-    runnable = [b for b in blocks_of(page) if b.not_run is None and b.lang in RUN_PY | RUN_SH]
-    sim = PageSim()
-    try:
-        failures = [f for b in runnable if (f := run_block(b, sim, workdir)) is not None]
-    finally:
-        sim.stop()
-    assert not failures, f"{len(failures)} of {len(runnable)} blocks failed\n\n" + "\n\n".join(failures)
+@pytest.mark.parametrize("page", RUN_PAGES, ids=_ids)
+def test_examples_run_as_written(page: Path, page_runs: dict[Path, Future[tuple[int, list[str]]]]) -> None:
+    count, failures = page_runs[page].result(timeout=BLOCK_TIMEOUT * 20)
+    assert not failures, f"{len(failures)} of {count} blocks failed\n\n" + "\n\n".join(failures)
 
 
 def test_the_harness_reads_markers_and_rewrites_ports(tmp_path: Path) -> None:
