@@ -9,7 +9,8 @@ The rules, for whoever writes docs:
 * Pages run at once (one thread, sim and directory each); the blocks of a page one after the other.
 * The sim runs on free ports, so the harness rewrites the default ones in each block:
   ``tcp://127.0.0.1:1000``, ``udp://127.0.0.1:1500`` (replies to 1501), the web port 8080 and the
-  Modbus port 5020. ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
+  Modbus port 5020; ``wsg proxy --listen 2000`` (and ``127.0.0.1:2000``) gets a free port too.
+  ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
   Lines that start ``wsg sim`` are dropped from sh blocks: that sim is the one already running.
 * ```` ```text ```` blocks are output or syntax shown to the reader and never run. Every other block
   needs a language, and a block that must not run (a real gripper's address, an endless server, an API
