@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs the whole test suite on a fresh machine: installs what it needs (a venv with the package and
-# its test extras; Debian's chromium, mbpoll and tshark for the browser, Modbus-master and capture
-# tests), then lint, types, and pytest. Extra arguments go to pytest.
+# its test extras; Debian's chromium, mbpoll, tshark and npm for the browser, Modbus-master and capture
+# tests; axe-core from npm for the accessibility check), then lint, types, and pytest. Extra arguments go to pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -13,12 +13,17 @@ need=()
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
 command -v mbpoll >/dev/null 2>&1 || need+=(mbpoll)
 command -v tshark >/dev/null 2>&1 || need+=(tshark)
+command -v npm >/dev/null 2>&1 || need+=(npm)
 if [ ${#need[@]} -gt 0 ]; then
     SUDO=""
     [ "$(id -u)" -eq 0 ] || SUDO="sudo"
     echo "installing Debian packages: ${need[*]}"
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}" >/dev/null
+fi
+# axe-core (npm) checks the web pages for WCAG violations in the browser tests
+if [ ! -f .venv/axe/node_modules/axe-core/axe.min.js ]; then
+    npm install --prefix .venv/axe --no-save --no-audit --no-fund --loglevel=error axe-core@4 >/dev/null
 fi
 echo "== ruff"
 .venv/bin/ruff check src tests benchmarks

@@ -96,7 +96,7 @@ def test_browsers_and_rebinding_hosts_are_refused(sim_proc: type[SimProc]) -> No
     assert _post(url, {}) == 200
     assert _post(url, {"Origin": "http://evil.example"}) == 403            # a web page's fetch
     assert _post(url, {"Sec-Fetch-Site": "cross-site"}) == 403
-    assert _post(url, {"Host": "evil.example:8080"}) == 403                 # DNS rebinding
+    assert _post(url, {"Host": "evil.example:8080"}) == 400                 # DNS rebinding: the web's Host check
     assert _post(url, {"Host": "localhost"}) == 200
     # the browser pages' API still needs its CSRF token
     assert _post(sim.web + "/api/sim/part", {}) == 403

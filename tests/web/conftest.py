@@ -35,6 +35,7 @@ CHROMIUM_ARGS = [
     "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage",
 ]
 T = TypeVar("T")
+REMOTE_PASSWORD = "correct horse battery"
 
 
 class LiveSim:
@@ -59,7 +60,18 @@ class LiveSim:
         kwargs: dict[str, Any] = {"fieldbus": self.modbus.controller, "sim_info": sim_info,
                                   "settings_path": self.settings_path}
         kwargs.update(self.web_kwargs)
+        self._serve_kwargs = kwargs
         self.web: WebHandle = await serve_web(self.gripper, self.host, 0, **kwargs)
+
+    def stop_web(self) -> int:
+        """Stop the web interface (as when the simulator stops); its port, for ``start_web``."""
+        port = self.web.port
+        self.run(self.web.close())
+        return port
+
+    def start_web(self, port: int) -> None:
+        """Serve the web interface again on ``port``: a new app, so every session is gone (a restart)."""
+        self.web = self.run(serve_web(self.gripper, self.host, port, **self._serve_kwargs))
 
     @property
     def url(self) -> str:
@@ -153,6 +165,23 @@ def page(browser: Any) -> Iterator[Any]:
     yield pg
     context.close()
     assert not errors, f"JavaScript errors: {errors}"
+
+
+@pytest.fixture(scope="module")
+def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    """Bound to 0.0.0.0 with a password: the non-loopback rules (tests use it over 127.0.0.1)."""
+    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+def submit_form(page: Any, form: str, **values: str) -> None:
+    """Fill the named inputs of ``form`` (a CSS selector) and press its submit button."""
+    for name, value in values.items():
+        page.fill(f"{form} [name={name}]", value)
+    page.click(f"{form} button[type=submit]")
 
 
 def home(sim: LiveSim, api: httpx.Client) -> None:

@@ -24,7 +24,7 @@ from pywsg.protocol import CATALOG, Command, Frame, SystemFlag
 
 from .conftest import LiveSim, client_for, home, read_status, wait_for
 
-PAGES = ["/", "/settings/interface", "/settings/motion", "/diagnosis/log", "/diagnosis/fieldbus",
+PAGES = ["/", "/settings/interface", "/settings/motion", "/diagnosis/log", "/diagnosis/fieldbus", "/scripting",
          "/simulation", "/help"]
 
 

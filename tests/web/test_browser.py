@@ -25,7 +25,8 @@ pytestmark = pytest.mark.browser
 
 PAGES = {
     "/": "Control Panel", "/settings/interface": "Command Interface", "/settings/motion": "Motion Configuration",
-    "/diagnosis/log": "System Log", "/diagnosis/fieldbus": "Fieldbus Monitor", "/simulation": "Simulation",
+    "/diagnosis/log": "System Log", "/diagnosis/fieldbus": "Fieldbus Monitor", "/scripting": "Scripting",
+    "/simulation": "Simulation",
     "/help": "Documentation",
 }
 
@@ -193,13 +194,15 @@ def test_fieldbus_monitor_shows_a_modbus_move_live(sim: LiveSim, page: Any, api:
     home(sim, api)
     page.goto(sim.url + "/diagnosis/fieldbus")
     page.wait_for_selector("#fb-output tr[data-index='7']")
-    assert page.inner_text("#fb-state") == "Online"
+    # 003 §6 Interface state: no master yet (item 9 of issue 15 replaced the constant "Online")
+    page.wait_for_function("document.getElementById('fb-state').dataset.state === 'waiting'")
     assert page.locator("#fb-output tbody tr").count() == 8
     assert page.locator("#fb-input tbody tr").count() == 12
     image = OutputImage.from_units(CmdFlag.MOVE, width_mm=30.0, speed_mm_s=40.0, force_n=25.0, if_flags=0x40)
     with ModbusTcpClient("127.0.0.1", port=sim.modbus.port) as mb:
         assert not mb.write_registers(0, image.registers()).isError()
         page.wait_for_function("document.querySelector('#fb-output tr[data-index=\"0\"] td.hex').innerText == '01h'")
+        assert page.inner_text("#fb-state").startswith("Online: 1 master connected")
         assert page.inner_text("#fb-output tr[data-index='1'] td.hex") == "40h"
         assert page.inner_text("#fb-output td[data-register='Width']") == "30.00 mm"
         assert page.inner_text("#fb-output td[data-register='Speed']") == "40.00 mm/s"

@@ -11,7 +11,6 @@ import json
 import re
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,17 +20,7 @@ import websockets.sync.client as ws_client
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from .conftest import ARTIFACTS, LiveSim
-
-PASSWORD = "correct horse battery"
-
-
-@pytest.fixture(scope="module")
-def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=PASSWORD)
-    try:
-        yield s
-    finally:
-        s.close()
+from .conftest import REMOTE_PASSWORD as PASSWORD
 
 
 def _login_token(c: httpx.Client) -> str:

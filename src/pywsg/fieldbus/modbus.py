@@ -30,6 +30,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import struct
+import time
+import weakref
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -137,6 +139,7 @@ class FieldbusModbusAdapter:
     def __init__(self, controller: FieldbusController) -> None:
         self.controller = controller
         self.requests = 0
+        self.last_write: float | None = None  # time.time() of the last write a master made
 
     def device(self) -> SimDevice:
         """The pymodbus device: four separate blocks, bit-addressed coils and discrete inputs."""
@@ -162,6 +165,8 @@ class FieldbusModbusAdapter:
                 offset = address - start_address
                 regs[offset:offset + len(set_values)] = [int(v) & 0xFFFF for v in set_values]
                 ctl.write_outputs(OutputImage.from_registers(regs))
+            if set_values is not None:
+                self.last_write = time.time()
         except (ValueError, IndexError):
             return ExcCodes.ILLEGAL_VALUE
         except Exception:  # never let a device error kill the bus: report it as a device failure
@@ -288,8 +293,19 @@ class ModbusHandle:
         """The input image now."""
         return self.controller.input_image()
 
+    @property
+    def masters(self) -> int:
+        """Modbus/TCP connections open now (the Fieldbus Monitor's Interface state)."""
+        return len(getattr(self.server, "active_connections", None) or {})
+
+    @property
+    def last_write(self) -> float | None:
+        """``time.time()`` of the last write a master made, None before the first."""
+        return self.adapter.last_write
+
     async def close(self) -> None:
         """Stop serving and close the controller's device session."""
+        _SERVING.pop(id(self.controller), None)
         await self.server.shutdown()
         self.controller.close()
         await asyncio.sleep(0)
@@ -314,4 +330,16 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
     sockets = getattr(server.transport, "sockets", None) or []
     bound = sockets[0].getsockname()[1] if sockets else port
     log.info("Modbus/TCP fieldbus on %s:%d", host, bound)
-    return ModbusHandle(host, bound, ctl, server, adapter)
+    handle = ModbusHandle(host, bound, ctl, server, adapter)
+    _SERVING[id(ctl)] = handle
+    return handle
+
+
+# controller id -> the server serving it, for views that hold only the controller (web interface)
+_SERVING: weakref.WeakValueDictionary[int, ModbusHandle] = weakref.WeakValueDictionary()
+
+
+def handle_of(controller: FieldbusController) -> ModbusHandle | None:
+    """The running Modbus/TCP server of ``controller``, if one serves it."""
+    handle = _SERVING.get(id(controller))
+    return handle if handle is not None and handle.controller is controller else None

@@ -9,9 +9,12 @@ Units: mm, mm/s, mm/s², N, °C. Fault injection is in ``sim_api.py``.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import json
 import logging
+import time
 from typing import Any, Literal
 
 from fastapi import APIRouter, Request
@@ -19,6 +22,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from .. import __version__
+from ..device import LogLevel
 from ..protocol import Command, HomingDirection, Status
 from .context import WebContext, command_result, error, motion_limits
 from .fieldbus_view import fieldbus_view
@@ -57,6 +61,32 @@ class ReleaseBody(StrictBody):
     speed: float = Field(gt=0, allow_inf_nan=False, description="mm/s")
 
 
+def iso_time(t: Any) -> str:
+    """Wall-clock seconds as ISO 8601 UTC with milliseconds: ``2026-11-24T18:25:03.123Z``."""
+    if not isinstance(t, int | float):
+        return ""
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(t)) + f".{int(t % 1 * 1000):03d}Z"
+
+
+def _shown(value: Any) -> str:
+    return "(none)" if value is None else json.dumps(jsonable(value))
+
+
+def record_changes(ctx: WebContext, before: Any, changes: dict[str, Any]) -> None:
+    """One System Log line per changed setting: which, from what, to what (issue 15 item 12)."""
+    add = getattr(getattr(ctx.gripper, "log", None), "add", None)
+    if not callable(add):
+        return
+    units = {e["name"]: e.get("unit") or "" for e in settings_schema(before)}
+    for name, new in changes.items():
+        old = getattr(before, name, None)
+        if old == new:
+            continue
+        unit = f" {units[name]}" if units.get(name) else ""
+        add(ctx.gripper.clock(), LogLevel.INFO,
+            f"setting {name} changed from {_shown(old)} to {_shown(new)}{unit} (web interface)")
+
+
 def router(ctx: WebContext) -> APIRouter:
     """The routes under /api except /api/sim."""
     r = APIRouter(prefix="/api")
@@ -83,29 +113,33 @@ def router(ctx: WebContext) -> APIRouter:
                 "settings_file": str(ctx.settings_path) if ctx.settings_path else None}
 
     # -- the fingers ------------------------------------------------------------------------------
+    def run(command: Command, **values: Any) -> JSONResponse:
+        """Send one command on the web's device session; its answer as HTTP (see ``command_result``)."""
+        status, replied = bridge.send(command, **values)
+        return command_result(command, status, replied, seq=bridge.last_seq)
+
     @r.post("/stop")
     async def stop() -> JSONResponse:
-        return command_result(Command.STOP, bridge.send(Command.STOP)[0])
+        return run(Command.STOP)
 
     @r.post("/fast-stop")
     async def fast_stop() -> JSONResponse:
-        return command_result(Command.FAST_STOP, bridge.send(Command.FAST_STOP)[0])
+        return run(Command.FAST_STOP)
 
     @r.post("/ack")
     async def ack() -> JSONResponse:
-        return command_result(Command.ACK_FAST_STOP, bridge.send(Command.ACK_FAST_STOP, key="ack")[0])
+        return run(Command.ACK_FAST_STOP, key="ack")
 
     @r.post("/home")
     async def home(body: HomeBody | None = None) -> JSONResponse:
         direction = HomingDirection[(body.direction if body else "default").upper()]
-        return command_result(Command.HOMING, bridge.send(Command.HOMING, direction=int(direction))[0])
+        return run(Command.HOMING, direction=int(direction))
 
     @r.post("/move")
     async def move(body: MoveBody) -> JSONResponse:
         motion_limits(ctx, body.width, body.speed, relative=body.relative)
         flags = (1 if body.relative else 0) | (2 if body.stop_on_block else 0)
-        status, _ = bridge.send(Command.PREPOSITION, flags=flags, width=body.width, speed=body.speed)
-        return command_result(Command.PREPOSITION, status)
+        return run(Command.PREPOSITION, flags=flags, width=body.width, speed=body.speed)
 
     @r.post("/grip")
     async def grip(body: GripBody) -> JSONResponse:
@@ -113,15 +147,13 @@ def router(ctx: WebContext) -> APIRouter:
         if body.force is not None:
             status, _ = bridge.send(Command.SET_FORCE_LIMIT, force=body.force)
             if status != Status.E_SUCCESS:
-                return command_result(Command.SET_FORCE_LIMIT, status)
-        status, _ = bridge.send(Command.GRIP_PART, width=body.width, speed=body.speed)
-        return command_result(Command.GRIP_PART, status)
+                return command_result(Command.SET_FORCE_LIMIT, status, seq=bridge.last_seq)
+        return run(Command.GRIP_PART, width=body.width, speed=body.speed)
 
     @r.post("/release")
     async def release(body: ReleaseBody) -> JSONResponse:
         motion_limits(ctx, body.width, body.speed)
-        status, _ = bridge.send(Command.RELEASE_PART, width=body.width, speed=body.speed)
-        return command_result(Command.RELEASE_PART, status)
+        return run(Command.RELEASE_PART, width=body.width, speed=body.speed)
 
     @r.get("/results")
     async def results(after: int = 0) -> list[dict[str, Any]]:
@@ -142,10 +174,13 @@ def router(ctx: WebContext) -> APIRouter:
     @r.post("/settings")
     async def post_settings(request: Request) -> Response:
         """Change some settings: a JSON object {name: value}. 422 names each refused field."""
+        data = await request.body()
         try:
-            raw = json.loads(await request.body())
+            raw = json.loads(data)
         except (ValueError, UnicodeDecodeError):
             return error(422, "invalid input: body is not JSON", {"_": "body is not JSON"})
+        except RecursionError:  # e.g. 5,000 nested [[[...]]]: the parser gives up, so do we
+            return error(422, "invalid input: JSON nested too deeply", {"_": "JSON nested too deeply"})
         if not isinstance(raw, dict) or not raw:
             return error(422, "invalid input: expected a JSON object of settings",
                          {"_": "expected a JSON object {name: value}"})
@@ -166,7 +201,7 @@ def router(ctx: WebContext) -> APIRouter:
         try:
             new = dataclasses.replace(current, **changes)
             ctx.gripper.apply_settings(new)
-        except (ValueError, TypeError) as exc:
+        except (ValueError, TypeError, OverflowError) as exc:
             field, reason = field_of_error(str(exc), list(schema))
             return error(422, f"invalid input: {exc}", {field: reason})
         saved = None
@@ -177,6 +212,7 @@ def router(ctx: WebContext) -> APIRouter:
             except OSError as exc:
                 return error(500, f"applied, but not saved to {ctx.settings_path}: {exc}")
         log.info("web: settings changed: %s", ", ".join(changes))
+        record_changes(ctx, current, changes)
         body = settings_body()
         body["changed"] = sorted(changes)
         body["saved"] = saved
@@ -189,6 +225,24 @@ def router(ctx: WebContext) -> APIRouter:
             return error(422, "invalid input: after >= 0, 1 <= limit <= 2000",
                          {"after" if after < 0 else "limit": "out of range"})
         return JSONResponse({"entries": ctx.log_feed.after(after, limit), "last": ctx.log_feed.seq})
+
+    @r.get("/log/export")
+    async def export_log(format: Literal["csv", "json"] = "csv") -> Response:
+        """The whole log as a file: CSV (seq, ISO time UTC, level, message) or JSON lines."""
+        entries = ctx.log_feed.after(0, ctx.log_feed.entries.maxlen or 2000)
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        if format == "json":
+            text = "".join(json.dumps({**e, "iso_time": iso_time(e.get("wall_time"))}) + "\n" for e in entries)
+            media = "application/x-ndjson"
+        else:
+            out = io.StringIO()
+            w = csv.writer(out)
+            w.writerow(["seq", "time_utc", "level", "message"])
+            for e in entries:
+                w.writerow([e["seq"], iso_time(e.get("wall_time")), e.get("level", ""), e.get("message", "")])
+            text, media = out.getvalue(), "text/csv; charset=utf-8"
+        name = f"wsg-system-log-{stamp}.{'jsonl' if format == 'json' else 'csv'}"
+        return Response(text, media_type=media, headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
     @r.get("/fieldbus")
     async def get_fieldbus() -> dict[str, Any]:

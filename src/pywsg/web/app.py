@@ -6,7 +6,10 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``context``  the shared state: the web's own device session, the log feed, error style
 - ``auth``     the guard every request passes (session, permissions, CSRF) and login/logout
 - ``pages``    the HTML pages and the menu
+- ``help_docs`` the project docs rendered as pages, and the downloads
+- ``interface_page`` Settings → Command Interface: the stored interface and network values
 - ``api``      the JSON API under /api (state, motion, settings, log, fieldbus)
+- ``device_api`` identity (50h–52h), the Motion page's commands (42h, 34h–38h, jog), Scripting
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
@@ -23,18 +26,19 @@ import logging
 import secrets
 import socket
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import uvicorn
 from fastapi import APIRouter, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from . import api, auth, live, pages, sim_api, world_api
+from . import api, auth, device_api, help_docs, interface_page, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -46,17 +50,26 @@ STATIC = Path(__file__).resolve().parent / "static"
 # is a module with ``router(ctx) -> APIRouter`` and one line here.
 ROUTERS: list[Callable[[WebContext], APIRouter]] = [
     pages.router,
+    help_docs.router,
     auth.router,
     api.router,
+    device_api.router,
     sim_api.router,
     world_api.router,
     live.router,
+    interface_page.router,
 ]
 
 
 def create_app(gripper: Any, *, loopback: bool = True, password: str | None = None, fieldbus: Any = None,
-               sim_info: Any = None, settings_path: str | Path | None = None) -> FastAPI:
-    """The ASGI app for ``gripper``. ``loopback``: whether it is bound to a loopback address only."""
+               sim_info: Any = None, settings_path: str | Path | None = None, host: str | None = None,
+               allowed_hosts: Sequence[str] = ()) -> FastAPI:
+    """The ASGI app for ``gripper``. ``loopback``: whether it is bound to a loopback address only.
+
+    ``host``: the bound address (``Host`` headers naming it are accepted; None or a wildcard
+    address: any IP address literal); ``allowed_hosts``: further names it is reached by, besides
+    localhost, 127.0.0.1 and [::1].
+    """
     if settings_path is None:
         settings_path = getattr(gripper, "settings_path", None)
     ctx = WebContext(
@@ -78,11 +91,24 @@ def create_app(gripper: Any, *, loopback: bool = True, password: str | None = No
             errors[".".join(loc) or "_"] = str(err.get("msg", "invalid"))
         return error(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
 
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
+        # a browser asking for a page gets a page; API clients and scripts get the JSON error
+        wants_page = not request.url.path.startswith("/api/") and "text/html" in request.headers.get("accept", "")
+        if exc.status_code == 404 and wants_page and hasattr(request.state, "websession"):
+            return pages.not_found_page(ctx, request, f"There is no page {request.url.path}.")
+        if exc.status_code == 400 and exc.detail == "There was an error parsing the body":
+            # FastAPI's answer when json.loads itself fails (RecursionError on 5,000 nested arrays):
+            # invalid input like any other unparsable body, in the one error style
+            return error(422, "invalid input: body could not be parsed (nested too deeply?)",
+                         {"_": "body could not be parsed"})
+        return error(exc.status_code, str(exc.detail), headers=exc.headers)
+
     @app.exception_handler(InputError)
     async def _input_error(request: Request, exc: InputError) -> JSONResponse:
         return error(422, f"invalid input: {exc}", exc.errors)
 
-    auth.install_guard(app, ctx)
+    auth.install_guard(app, ctx, bound=host, allowed_hosts=allowed_hosts)
     for make_router in ROUTERS:
         app.include_router(make_router(ctx))
     return app
@@ -144,7 +170,7 @@ def _bind(host: str, port: int) -> socket.socket:
 async def serve_web(gripper: Any, host: str, port: int, *, password: str | None = None, fieldbus: Any = None,
                     sim_info: Any = None, settings_path: str | Path | None = None,
                     ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
-                    max_connections: int = 64) -> WebHandle:
+                    allowed_hosts: Sequence[str] = (), max_connections: int = 64) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -152,6 +178,8 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     Fieldbus Monitor shows. ``sim_info``: what the simulator serves (interfaces and ports), shown
     under Settings → Command Interface. ``settings_path``: where changed settings are saved
     (default: ``gripper.settings_path`` when present). ``ssl_certfile``/``ssl_keyfile``: serve HTTPS.
+    ``allowed_hosts``: names besides the bound address, localhost, 127.0.0.1 and [::1] that the
+    ``Host`` header may carry (e.g. ``["gripper.cell4.local"]``); others get 400 (DNS rebinding).
     ``max_connections``: open HTTP/WebSocket connections at a time; more are refused.
     """
     loopback = is_loopback_host(host)
@@ -161,7 +189,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     if password is not None and (not password or len(password) > 256):
         raise ValueError("password must be 1..256 characters")
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
-                     settings_path=settings_path)
+                     settings_path=settings_path, host=host, allowed_hosts=allowed_hosts)
     from ..server.conncap import capped_http_protocol
 
     sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit

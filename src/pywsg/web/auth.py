@@ -1,20 +1,29 @@
-"""Auth glue: the guard every HTTP request passes, and the login/logout routes.
+"""Auth glue: the guards every request passes, and the login/logout routes.
 
 The rules themselves (who may read, who may write, CSRF tokens, sessions) live in ``security.py``;
-this module applies them to requests: it finds or creates the session cookie, answers 401/403/413
-before a handler runs, and sets the security headers on every response. Login and logout are form
-posts (the login page works without JavaScript).
+this module applies them to requests, outermost first:
+
+- ``HostCheck``: the ``Host`` header must name this server (no DNS rebinding);
+- ``BodyLimit``: a request body is cut off at ``MAX_BODY`` bytes while it streams (413), chunked or not;
+- the guard: finds or creates the session cookie, answers 401/403/413 before a handler runs, and
+  sets the security headers on every response.
+
+Login and logout are form posts (the login page works without JavaScript).
 """
 
 from __future__ import annotations
 
+import ipaddress
 import logging
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Iterable
 from html import escape
 from urllib.parse import parse_qs, quote, urlsplit
 
-from fastapi import APIRouter, FastAPI, Request, WebSocket
+from fastapi import APIRouter, FastAPI, HTTPException, Request, WebSocket
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
+from starlette.datastructures import Headers
+from starlette.middleware.trustedhost import TrustedHostMiddleware
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import world_api
 from .context import MAX_BODY, WebContext, error
@@ -37,8 +46,94 @@ def same_origin(request: Request | WebSocket) -> bool:
     return urlsplit(origin).netloc.lower() == host.lower()
 
 
-def install_guard(app: FastAPI, ctx: WebContext) -> None:
-    """The session/permission/CSRF middleware and the security headers."""
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+WILDCARD_BINDS = ("", "0.0.0.0", "::")
+
+
+def _host_name(host_header: str | None) -> str | None:
+    """The name or address in a ``Host`` header, lower case, without port or brackets."""
+    if not host_header:
+        return None
+    try:
+        return urlsplit("//" + host_header).hostname
+    except ValueError:
+        return None
+
+
+def _is_ip(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+class HostCheck(TrustedHostMiddleware):
+    """Starlette's TrustedHostMiddleware for the names this server answers to.
+
+    Accepted: the bound address, ``localhost``, ``127.0.0.1``, ``[::1]`` and the configured names
+    (``allowed_hosts``). A rebinding attacker's page reaches 127.0.0.1 under *his* name
+    (``rebind.example``), so its requests are refused with 400 before any cookie or CSRF token is
+    looked at. Bound to a wildcard address (0.0.0.0, ::) any IP address literal is accepted too:
+    DNS cannot rebind an address, and the machine's own addresses are not known in advance.
+    """
+
+    def __init__(self, app: ASGIApp, *, bound: str | None, allowed_hosts: Iterable[str] = ()) -> None:
+        names = {*LOOPBACK_NAMES, *(h.lower().strip("[]") for h in allowed_hosts)}
+        bound_name = (bound or "").lower().strip("[]")
+        self.any_ip = bound is None or bound_name in WILDCARD_BINDS
+        if not self.any_ip:
+            names.add(bound_name)
+        # TrustedHostMiddleware keeps IPv6 literals in brackets
+        super().__init__(app, allowed_hosts=sorted(f"[{n}]" if ":" in n else n for n in names),
+                         www_redirect=False)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if self.any_ip and scope["type"] in ("http", "websocket"):
+            name = _host_name(Headers(scope=scope).get("host"))
+            if name is not None and _is_ip(name):
+                await self.app(scope, receive, send)
+                return
+        await super().__call__(scope, receive, send)
+
+
+class BodyLimit:
+    """Refuse a request body over ``limit`` bytes while it streams: 413, connection closed.
+
+    The guard checks a declared Content-Length up front; a chunked body (or one longer than it
+    claims) is counted here as the handler reads it, so no handler ever holds more than ``limit``
+    bytes and the rest is never read from the socket.
+    """
+
+    def __init__(self, app: ASGIApp, limit: int = MAX_BODY) -> None:
+        self.app = app
+        self.limit = limit
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        seen = 0
+
+        async def limited() -> Message:
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > self.limit:  # the route's exception handling turns this into the JSON 413
+                    raise HTTPException(413, f"request body larger than {self.limit} bytes",
+                                        headers={"Connection": "close"})
+            return message
+
+        await self.app(scope, limited, send)
+
+
+def install_guard(app: FastAPI, ctx: WebContext, *, bound: str | None = None,
+                  allowed_hosts: Iterable[str] = ()) -> None:
+    """The host check, the body limit, the session/permission/CSRF middleware and the headers."""
+    # Starlette runs the middleware added last first: HostCheck, the guard, then BodyLimit (inside
+    # the guard, so that its 413 reaches the route's exception handling and not the guard's task group)
+    app.add_middleware(BodyLimit, limit=MAX_BODY)
 
     @app.middleware("http")
     async def _guard(request: Request, call_next: Callable[[Request], Awaitable[Response]]) -> Response:
@@ -83,9 +178,11 @@ def install_guard(app: FastAPI, ctx: WebContext) -> None:
             return error(403, f"missing or wrong CSRF token (send the {CSRF_HEADER} header)")
         return await call_next(request)
 
+    app.add_middleware(HostCheck, bound=bound, allowed_hosts=tuple(allowed_hosts))  # outermost
+
 
 async def _form(request: Request) -> dict[str, str]:
-    raw = (await request.body())[:MAX_BODY].decode("utf-8", "replace")
+    raw = (await request.body()).decode("utf-8", "replace")  # at most MAX_BODY bytes: BodyLimit
     return {k: v[0] for k, v in parse_qs(raw, keep_blank_values=True).items()}
 
 
@@ -119,12 +216,15 @@ def router(ctx: WebContext) -> APIRouter:
         form = await _form(request)
         target = safe_next(form.get("next", "/"))
         client = request.client.host if request.client else "?"
+        # the login form is a page: its refusals are pages too (the JSON API answers JSON)
         if not ctx.auth.csrf_ok(s, form.get(CSRF_FIELD)):
-            return error(403, "missing or wrong CSRF token")
+            return login_html(ctx, request, target, "The login form had expired: please try again.", status=403)
         if not ctx.auth.login_possible:
             return error(400, "no password is set: this interface needs no login")
         if ctx.auth.throttled(client):
-            return error(429, "too many failed logins; wait a minute")
+            log.warning("web: login locked for %s (too many failed attempts)", client)
+            return login_html(ctx, request, target, "Too many failed logins from your address: the login is "
+                              "locked for a minute. Wait, then try again.", status=429)
         fresh = ctx.auth.login(s, form.get("password", ""), client)
         if fresh is None:
             log.warning("web: failed login from %s", client)

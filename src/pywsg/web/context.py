@@ -37,11 +37,13 @@ class InputError(Exception):
         self.errors = errors
 
 
-def error(status: int, detail: str, errors: Mapping[str, str] | None = None) -> JSONResponse:
+def error(status: int, detail: str, errors: Mapping[str, str] | None = None,
+          headers: Mapping[str, str] | None = None) -> JSONResponse:
+    """The one JSON error style: ``{"detail": text, "errors": {field: reason}}``."""
     body: dict[str, Any] = {"detail": detail}
     if errors is not None:
         body["errors"] = dict(errors)
-    return JSONResponse(body, status_code=status)
+    return JSONResponse(body, status_code=status, headers=dict(headers) if headers else None)
 
 
 # -- the device side ------------------------------------------------------------------------------
@@ -52,6 +54,7 @@ class CommandBridge:
         self.gripper = gripper
         self.results: deque[dict[str, Any]] = deque(maxlen=100)
         self.seq = 0
+        self.last_seq = 0  # seq of the last answer ``send`` recorded: the page matches final results to it
         self.session = gripper.open_session("web", peer="web interface", deliver=self._deliver)
 
     def _record(self, command_id: int, status: Status | int, final: bool) -> dict[str, Any]:
@@ -80,7 +83,7 @@ class CommandBridge:
             if reply.command_id == int(command) and answer is None:
                 status, decoded = spec.decode_reply(reply.payload)
                 if record:
-                    self._record(int(command), status, status != Status.E_CMD_PENDING)
+                    self.last_seq = self._record(int(command), status, status != Status.E_CMD_PENDING)["seq"]
                 answer = status, dict(decoded)
             else:  # e.g. Stop: the aborted motion's final frame comes with 22h's own reply
                 self._deliver(reply)
@@ -198,12 +201,16 @@ class WebContext:
         return getattr(self.gripper, "faults", None) is not None
 
 
-def command_result(command: Command, status: Status | int, values: Mapping[str, Any] | None = None
-                   ) -> JSONResponse:
-    """200 E_SUCCESS, 202 E_CMD_PENDING (final result follows on the WebSocket), 409 device refusal."""
+def command_result(command: Command, status: Status | int, values: Mapping[str, Any] | None = None,
+                   seq: int | None = None) -> JSONResponse:
+    """200 E_SUCCESS, 202 E_CMD_PENDING (final result follows on the WebSocket), 409 device refusal.
+
+    ``seq``: the number of this result in ``CommandBridge.results``; a final result with a higher
+    number for the same command settles it, even when the WebSocket brought it before this reply.
+    """
     name = status.name if isinstance(status, Status) else f"status {int(status)}"
     body: dict[str, Any] = {
-        "command": CATALOG[command].name, "status": name, "code": int(status),
+        "command": CATALOG[command].name, "status": name, "code": int(status), "seq": seq,
         "message": status.description if isinstance(status, Status) else "unknown status code",
     }
     if values:

@@ -8,9 +8,11 @@ layout and byte order: docs/architecture.md, "Modbus register byte order").
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from ..fieldbus.image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage
+from ..fieldbus.modbus import handle_of
 from ..protocol import GState, Status, SystemFlag
 
 # Bit labels as in the screenshot (STOP/ACK, JOG+, ...), lowest bit first.
@@ -74,11 +76,26 @@ def controller_of(fieldbus: Any) -> Any:
     return getattr(fieldbus, "controller", fieldbus)
 
 
+def bus_state(fieldbus: Any) -> dict[str, Any]:
+    """The Bus State box (003 §6): is a Modbus/TCP server running, how many masters, last write.
+
+    ``state``: "online" (a master is connected), "waiting" (served, no master), "offline" (no
+    server serves this controller). ``last_write`` and ``now`` are ``time.time()`` seconds.
+    """
+    handle = fieldbus if hasattr(fieldbus, "masters") else handle_of(controller_of(fieldbus))
+    if handle is None:
+        return {"protocol": "Modbus/TCP", "state": "offline", "port": None, "masters": 0, "last_write": None,
+                "now": time.time()}
+    masters = int(handle.masters)
+    return {"protocol": "Modbus/TCP", "state": "online" if masters else "waiting", "port": handle.port,
+            "masters": masters, "last_write": handle.last_write, "now": time.time()}
+
+
 def fieldbus_view(fieldbus: Any) -> dict[str, Any]:
     """What the Fieldbus Monitor page and its WebSocket messages carry."""
     ctl = controller_of(fieldbus)
     if ctl is None:
-        return {"available": False, "model": None, "output": _MISSING, "input": _MISSING}
+        return {"available": False, "model": None, "output": _MISSING, "input": _MISSING, "bus": bus_state(None)}
     model = str(getattr(ctl, "model", "wsg50"))
     out = bytes(ctl.output_bytes)[:OUTPUT_SIZE]
     inp = bytes(ctl.input_bytes())[:INPUT_SIZE]
@@ -88,4 +105,5 @@ def fieldbus_view(fieldbus: Any) -> dict[str, Any]:
         "status": int(getattr(ctl, "status", 0)),
         "output": _bytes_view(out, output_registers(OutputImage.unpack(out), model)),
         "input": _bytes_view(inp, input_registers(InputImage.unpack(inp), model)),
+        "bus": bus_state(fieldbus),
     }

@@ -14,10 +14,10 @@ from string import Template
 from urllib.parse import quote
 
 from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse, PlainTextResponse, Response
+from fastapi.responses import HTMLResponse
 
 from .. import __version__
-from .context import WebContext, error
+from .context import WebContext
 from .reference import command_reference_html
 from .security import CSRF_FIELD, WebSession
 
@@ -29,6 +29,7 @@ MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
     ("Settings", [("/settings/interface", "Command Interface"), ("/settings/motion", "Motion Configuration")]),
     ("Diagnosis", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
+    ("Scripting", [("/scripting", "Scripting")]),
     ("Simulation", [("/simulation", "Simulation")]),
     ("Help", [("/help", "Documentation")]),
 ]
@@ -40,6 +41,7 @@ PAGES: dict[str, tuple[str, str, str]] = {
     "/settings/motion": ("Motion Configuration", "settings.html", "settings"),
     "/diagnosis/log": ("System Log", "log.html", "log"),
     "/diagnosis/fieldbus": ("Fieldbus Monitor", "fieldbus.html", "fieldbus"),
+    "/scripting": ("Scripting", "scripting.html", "scripting"),
     "/simulation": ("Simulation", "simulation.html", "simulation"),
 }
 
@@ -49,19 +51,24 @@ def template(name: str) -> Template:
 
 
 def nav(current: str) -> str:
+    """The menu bar; a menu with several pages is a WAI-ARIA disclosure (a button that opens a list)."""
     parts = []
     for title, items in MENU:
         active = any(href == current for href, _ in items)
         if len(items) == 1:
             href, _ = items[0]
-            parts.append(f"<li class='{'active' if active else ''}'><a href='{href}'>{escape(title)}</a></li>")
+            here = " aria-current='page'" if active else ""
+            parts.append(f"<li class='{'active' if active else ''}'><a href='{href}'{here}>{escape(title)}</a></li>")
             continue
         links = "".join(
-            f"<li><a href='{href}' class='{'active' if href == current else ''}'>{escape(label)}</a></li>"
+            f"<li><a href='{href}' class='{'active' if href == current else ''}'"
+            f"{' aria-current=page' if href == current else ''}>{escape(label)}</a></li>"
             for href, label in items
         )
-        parts.append(f"<li class='menu {'active' if active else ''}'><span>{escape(title)}</span>"
-                     f"<ul>{links}</ul></li>")
+        menu_id = "menu-" + title.lower()
+        parts.append(f"<li class='menu {'active' if active else ''}'>"
+                     f"<button type='button' aria-expanded='false' aria-controls='{menu_id}'>{escape(title)}</button>"
+                     f"<ul id='{menu_id}' hidden>{links}</ul></li>")
     return "<ul class='nav'>" + "".join(parts) + "</ul>"
 
 
@@ -84,6 +91,19 @@ def render_page(ctx: WebContext, request: Request, path: str, title: str, body_t
     return HTMLResponse(page, headers={"Cache-Control": "no-store"})
 
 
+def not_found_page(ctx: WebContext, request: Request, what: str) -> HTMLResponse:
+    """The 404 page in the interface's frame (the menu still works from it)."""
+    body = (f"<p class='banner bad' role='alert'>{escape(what)}</p>"
+            "<p>The page may have moved; the menu above leads to every page of the interface. "
+            "<a href='/'>Back to the Control Panel</a>.</p>")
+    s: WebSession = request.state.websession
+    page = template("base.html").safe_substitute(
+        title="Page not found", model=escape(ctx.model_name()), nav=nav(""), body=body, csrf=escape(s.csrf),
+        user="", script="notfound", version=escape(__version__),
+        can_write="true" if ctx.auth.may_write(s) else "false")
+    return HTMLResponse(page, status_code=404, headers={"Cache-Control": "no-store"})
+
+
 def doc_files() -> list[str]:
     if not PROJECT_DOCS.is_dir():
         return []
@@ -91,14 +111,16 @@ def doc_files() -> list[str]:
 
 
 def router(ctx: WebContext) -> APIRouter:
-    """The pages of ``PAGES``, Help and the project docs."""
+    """The pages of ``PAGES`` and Help (the docs themselves: ``help_docs``)."""
     r = APIRouter(include_in_schema=False)
 
     def make(path: str, title: str, tpl: str, script: str) -> Callable[[Request], Awaitable[HTMLResponse]]:
         group = "interface" if path.endswith("interface") else "motion"
+        panels = template(f"{group}_panels.html").template if tpl == "settings.html" else ""
 
         async def page(request: Request) -> HTMLResponse:
-            return render_page(ctx, request, path, title, tpl, script, group=group, heading=escape(title))
+            return render_page(ctx, request, path, title, tpl, script, group=group, heading=escape(title),
+                               panels=panels)
 
         return page
 
@@ -112,12 +134,5 @@ def router(ctx: WebContext) -> APIRouter:
             "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
         return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
                            reference=command_reference_html())
-
-    @r.get("/docs/{name}", response_class=PlainTextResponse)
-    async def doc_file(name: str) -> Response:
-        if name not in doc_files():  # only listed files: no path traversal
-            return error(404, f"no document {name!r}")
-        return PlainTextResponse((PROJECT_DOCS / name).read_text(encoding="utf-8"),
-                                 media_type="text/markdown; charset=utf-8")
 
     return r

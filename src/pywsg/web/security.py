@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 COOKIE_NAME = "wsg_session"
 CSRF_HEADER = "x-csrf-token"
 CSRF_FIELD = "csrf_token"
-MAX_SESSIONS = 1000  # oldest anonymous sessions are dropped beyond this: no memory exhaustion
+MAX_SESSIONS = 1000  # beyond this the oldest unused anonymous session goes first: no memory exhaustion
 SESSION_TTL_S = 8 * 3600.0
 LOGIN_WINDOW_S = 60.0
 LOGIN_MAX_FAILURES = 10  # per client address and window, then 429
@@ -58,33 +58,49 @@ class Auth:
     def __init__(self, *, loopback: bool, password: str | None) -> None:
         self.loopback = loopback
         self.password = password
-        self._sessions: OrderedDict[str, WebSession] = OrderedDict()
+        # Three tiers, evicted in this order when the store is full (issue 13 item 11): sessions
+        # whose cookie never came back (what a flood of cookieless requests creates), anonymous
+        # sessions in use (on loopback they hold the open page's CSRF token), logged-in sessions.
+        self._new: OrderedDict[str, WebSession] = OrderedDict()
+        self._used: OrderedDict[str, WebSession] = OrderedDict()
+        self._logged_in: OrderedDict[str, WebSession] = OrderedDict()
         self._failures: dict[str, deque[float]] = {}
 
     # -- sessions -------------------------------------------------------------------------------
     def lookup(self, sid: str | None) -> WebSession | None:
         if not sid:
             return None
-        s = self._sessions.get(sid)
-        if s is None:
+        tier = next((t for t in (self._logged_in, self._used, self._new) if sid in t), None)
+        if tier is None:
             return None
+        s = tier[sid]
         now = time.monotonic()
         if now - s.last_seen > SESSION_TTL_S:
-            del self._sessions[sid]
+            del tier[sid]
             return None
         s.last_seen = now
-        self._sessions.move_to_end(sid)
+        if tier is self._new:  # the cookie came back: a browser that keeps it
+            del tier[sid]
+            self._used[sid] = s
+        else:
+            tier.move_to_end(sid)
         return s
 
-    def create(self) -> WebSession:
-        s = WebSession(id=secrets.token_urlsafe(32), csrf=secrets.token_urlsafe(32))
-        self._sessions[s.id] = s
-        while len(self._sessions) > MAX_SESSIONS:
-            self._sessions.popitem(last=False)
+    def create(self, *, authenticated: bool = False) -> WebSession:
+        s = WebSession(id=secrets.token_urlsafe(32), csrf=secrets.token_urlsafe(32), authenticated=authenticated)
+        (self._logged_in if authenticated else self._new)[s.id] = s
+        while len(self) > MAX_SESSIONS:
+            oldest = next(t for t in (self._new, self._used, self._logged_in) if t)
+            oldest.popitem(last=False)
         return s
+
+    def __len__(self) -> int:
+        """Sessions held."""
+        return len(self._new) + len(self._used) + len(self._logged_in)
 
     def drop(self, s: WebSession) -> None:
-        self._sessions.pop(s.id, None)
+        for tier in (self._new, self._used, self._logged_in):
+            tier.pop(s.id, None)
 
     # -- rules ----------------------------------------------------------------------------------
     def may_read(self, s: WebSession | None) -> bool:
@@ -125,6 +141,4 @@ class Auth:
                 self._failures.pop(next(iter(self._failures)))
             return None
         self.drop(s)
-        fresh = self.create()
-        fresh.authenticated = True
-        return fresh
+        return self.create(authenticated=True)

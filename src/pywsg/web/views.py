@@ -218,13 +218,18 @@ def coerce_setting(entry: Mapping[str, Any], raw: Any, current: Any) -> Any:
     elif kind == "int":
         if isinstance(raw, bool) or not isinstance(raw, int):
             raise ValueError("must be a whole number")
+        if abs(raw) >= 1 << 63:  # no setting is that large; keeps huge ints away from the device
+            raise ValueError("out of range")
         value = raw
     elif kind == "float":
         if isinstance(raw, bool) or not isinstance(raw, int | float):
             raise ValueError("must be a number")
-        if not math.isfinite(raw):
+        try:  # a 400-digit integer overflows float() like 1e999 overflows the JSON float
+            value = float(raw)
+        except OverflowError:
+            raise ValueError("must be a finite number") from None
+        if not math.isfinite(value):
             raise ValueError("must be a finite number")
-        value = float(raw)
     elif kind == "str":
         if not isinstance(raw, str):
             raise ValueError("must be text")

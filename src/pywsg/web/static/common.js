@@ -1,23 +1,63 @@
 // Shared by every page: CSRF-aware JSON requests, the live WebSocket, the Gripper side box,
-// command forms with errors shown beside their fields. No dependencies, no build step.
+// the menus, command forms with errors shown beside their fields. No dependencies, no build step.
 "use strict";
 (function () {
-  const csrf = document.querySelector('meta[name="csrf-token"]').content;
   const canWrite = document.querySelector('meta[name="can-write"]').content === "true";
   const listeners = [];
-  const WSG = { csrf, canWrite, listeners, last: null, updates: 0 };
+  const WSG = {
+    csrf: document.querySelector('meta[name="csrf-token"]').content,
+    canWrite, listeners, last: null, updates: 0, live: false, lastUpdate: null,
+    finals: {},  // command name -> newest final result {seq, status} seen on the WebSocket
+  };
   window.WSG = WSG;
+  const TIMEOUT_MS = 8000;  // a command that gets no answer in this time fails with a message
 
-  WSG.api = async function (method, url, body) {
-    const opts = { method, headers: { "X-CSRF-Token": csrf }, credentials: "same-origin" };
+  async function renewToken() {
+    // after a restart of the gripper the old session is gone: /api/csrf hands out a new one
+    // (its answer sets the new session cookie); on a non-loopback bind that means logging in again
+    const resp = await fetch("/api/csrf", { credentials: "same-origin", cache: "no-store" });
+    if (!resp.ok) return false;
+    const data = await resp.json();
+    WSG.csrf = data.token;
+    return data.can_write;
+  }
+  WSG.renewToken = renewToken;
+
+  async function request(method, url, body) {
+    const opts = { method, headers: { "X-CSRF-Token": WSG.csrf }, credentials: "same-origin" };
     if (body !== undefined) {
       opts.headers["Content-Type"] = "application/json";
       opts.body = JSON.stringify(body);
     }
-    const resp = await fetch(url, opts);
-    let data = null;
-    try { data = await resp.json(); } catch (e) { data = { detail: resp.statusText }; }
-    return { status: resp.status, ok: resp.ok, data };
+    const abort = new AbortController();
+    const timer = setTimeout(function () { abort.abort(); }, TIMEOUT_MS);
+    opts.signal = abort.signal;
+    try {
+      const resp = await fetch(url, opts);
+      let data = null;
+      try { data = await resp.json(); } catch (e) { data = { detail: resp.statusText }; }
+      return { status: resp.status, ok: resp.ok, data: data || {} };
+    } catch (e) {
+      const why = e && e.name === "AbortError" ? "no answer within " + TIMEOUT_MS / 1000 + " s" : "no connection";
+      return { status: 0, ok: false, data: { detail: "not sent: " + why + " to the gripper (is the simulator running?)" } };
+    } finally {
+      clearTimeout(timer);
+    }
+  }
+
+  // Every request of the page: a refused CSRF token is renewed once and the request repeated, so
+  // Stop works right after a restart of the gripper even before the WebSocket is back.
+  WSG.api = async function (method, url, body) {
+    let r = await request(method, url, body);
+    if (r.status === 403 && /CSRF/.test(r.data.detail || "")) {
+      try { await renewToken(); } catch (e) { /* answered below */ }
+      r = await request(method, url, body);
+      if (r.status === 403 && /CSRF/.test(r.data.detail || "")) {
+        r.data.detail = "this page's session has expired: reload the page";
+      }
+    }
+    if (r.status === 401) r.data.detail = "login required: log in again (the gripper may have restarted)";
+    return r;
   };
 
   WSG.fmt = function (v, digits, unit) {
@@ -34,25 +74,66 @@
   }
   WSG.banner = banner;
 
+  function announce(text) {
+    const a = document.getElementById("announce");
+    if (a && a.textContent !== text) a.textContent = text;
+  }
+
   // -- live connection -------------------------------------------------------------------------
+  function setStale(stale) {
+    document.body.classList.toggle("stale", stale);
+    const text = document.getElementById("ws-text");
+    if (stale) {
+      const since = WSG.lastUpdate ? " since " + WSG.lastUpdate.toLocaleTimeString() : "";
+      text.textContent = "disconnected" + since + " – values are stale, retrying";
+    } else {
+      text.textContent = "live";
+    }
+  }
+
   WSG.connect = function (params) {
     const proto = location.protocol === "https:" ? "wss:" : "ws:";
     const query = new URLSearchParams(params || {}).toString();
     const url = proto + "//" + location.host + "/ws" + (query ? "?" + query : "");
     const dot = document.getElementById("ws-status");
-    const text = document.getElementById("ws-text");
     let ws;
-    function open() {
+    let wasLive = false;
+    async function open() {
+      if (wasLive) {
+        // reconnecting (the gripper may have restarted): a fresh session and CSRF token first
+        try {
+          const writable = await renewToken();
+          if (canWrite && !writable) banner("The session ended (the gripper restarted?): log in again.", "bad");
+        } catch (e) { setTimeout(open, 1000); return; }
+      }
       ws = new WebSocket(url);
-      ws.onopen = function () { dot.className = "dot on"; text.textContent = "live"; };
+      ws.onopen = function () {
+        wasLive = true; WSG.live = true;
+        dot.className = "dot on"; setStale(false);
+        const b = document.getElementById("banner");
+        if (b && b.dataset.conn) { banner(""); delete b.dataset.conn; }
+      };
       ws.onclose = function () {
-        dot.className = "dot off"; text.textContent = "disconnected – retrying";
+        WSG.live = false;
+        dot.className = "dot off"; setStale(true);
+        if (wasLive) {
+          banner("No connection to the gripper: the values shown are stale. Commands will fail until it is back.", "bad");
+          document.getElementById("banner").dataset.conn = "1";
+          announce("Connection to the gripper lost");
+        }
         setTimeout(open, 1000);
       };
       ws.onmessage = function (ev) {
         const msg = JSON.parse(ev.data);
         WSG.last = msg;
         WSG.updates += 1;
+        WSG.lastUpdate = new Date();
+        if (msg.results) {
+          for (const r of msg.results) {
+            const f = WSG.finals[r.command];
+            if (r.final && (!f || r.seq > f.seq)) WSG.finals[r.command] = { seq: r.seq, status: r.status };
+          }
+        }
         if (msg.state) updateBox(msg.state);
         for (const fn of listeners) fn(msg);
       };
@@ -61,8 +142,9 @@
   };
 
   function updateBox(s) {
-    document.getElementById("g-state").textContent = s.state;
-    document.getElementById("g-state").className = "state-" + s.state;
+    const st = document.getElementById("g-state");
+    st.textContent = s.state;
+    st.className = "state-" + s.state;
     // like the real panel: no position until the fingers are referenced (homing)
     document.getElementById("g-width").textContent = s.referenced === false ? "[n/a]" : WSG.fmt(s.width, 2, "mm");
     document.getElementById("g-speed").textContent = WSG.fmt(s.speed, 1, "mm/s");
@@ -83,6 +165,57 @@
       li.className = f.on ? "on" : "";
     });
     document.body.dataset.state = s.state;
+    // screen readers hear state changes and FAST STOP (aria-live region), not every number
+    const fast = s.flag_names.indexOf("SF_FAST_STOP") >= 0;
+    // 001 §41h: ERROR "remains until the next motion command is received" (after an acknowledge if
+    // FAST STOP is active) — say so, or an ERROR with no flag set looks like a fault nobody can clear
+    const note = document.getElementById("g-state-note");
+    if (note) {
+      note.textContent = s.state !== "ERROR" ? "" : fast
+        ? "FAST STOP: acknowledge (Ack), then any motion command clears ERROR."
+        : "Kept until the next motion command (grip state, 001 §41h).";
+      document.getElementById("g-state-note-row").hidden = s.state !== "ERROR";
+    }
+    announce("Gripper state " + s.state + (fast ? ", FAST STOP active" : ""));
+  }
+
+  // -- identity header: model, firmware, serial, hardware revision, device tag (50h/52h) ----------
+  WSG.loadIdentity = async function () {
+    const r = await WSG.api("GET", "/api/identity");
+    if (!r.ok) return;
+    const d = r.data;
+    const set = function (id, v) { const el = document.getElementById(id); if (el) el.textContent = v === null || v === undefined || v === "" ? "–" : String(v); };
+    set("id-tag", d.tag); set("id-serial", d.serial); set("id-fw", d.firmware); set("id-hw", d.hw_revision);
+    const title = document.getElementById("model-title");
+    if (title && d.model) title.textContent = d.model + " Control Panel";
+  };
+
+  // -- menus (WAI-ARIA disclosure: a button per menu, Escape closes) -----------------------------
+  function setupMenus() {
+    const buttons = document.querySelectorAll("ul.nav button[aria-controls]");
+    function close(except) {
+      for (const b of buttons) {
+        if (b === except) continue;
+        b.setAttribute("aria-expanded", "false");
+        document.getElementById(b.getAttribute("aria-controls")).hidden = true;
+      }
+    }
+    for (const b of buttons) {
+      b.addEventListener("click", function () {
+        const open = b.getAttribute("aria-expanded") !== "true";
+        close(b);
+        b.setAttribute("aria-expanded", String(open));
+        document.getElementById(b.getAttribute("aria-controls")).hidden = !open;
+      });
+    }
+    document.addEventListener("keydown", function (ev) {
+      if (ev.key !== "Escape") return;
+      const open = Array.from(buttons).find(function (b) { return b.getAttribute("aria-expanded") === "true"; });
+      if (open) { close(null); open.focus(); }
+    });
+    document.addEventListener("click", function (ev) {
+      if (!ev.target.closest || !ev.target.closest("ul.nav")) close(null);
+    });
   }
 
   // -- forms -----------------------------------------------------------------------------------
@@ -102,35 +235,68 @@
 
   WSG.showErrors = function (form, errors) {
     for (const span of form.querySelectorAll(".field-error")) span.textContent = "";
-    for (const el of form.querySelectorAll(".invalid")) el.classList.remove("invalid");
+    for (const el of form.querySelectorAll(".invalid")) { el.classList.remove("invalid"); el.removeAttribute("aria-invalid"); }
     if (!errors) return;
     for (const [name, msg] of Object.entries(errors)) {
       const span = form.querySelector('.field-error[data-for="' + CSS.escape(name) + '"]');
       if (span) {
         span.textContent = msg;
         const input = form.querySelector('[name="' + CSS.escape(name) + '"]');
-        if (input) input.classList.add("invalid");
+        if (input) { input.classList.add("invalid"); input.setAttribute("aria-invalid", "true"); }
       }
     }
   };
 
+  function showResult(out, ok, text) {
+    out.textContent = text;
+    out.className = "result " + (ok ? "ok" : "bad");
+  }
+  WSG.showResult = showResult;
+
   async function submit(form, method, endpoint) {
     const out = form.querySelector("output.result");
     const body = method === "DELETE" ? undefined : formBody(form);
-    if (out) { out.textContent = "…"; out.className = "result"; }
+    if (out) { out.textContent = "…"; out.className = "result"; delete out.dataset.seq; }
     const r = await WSG.api(method, endpoint, body);
     WSG.showErrors(form, r.data && r.data.errors);
     if (out) {
       const d = r.data || {};
-      out.textContent = r.ok ? (d.status || d.action || "OK") : (d.status || ("error " + r.status)) + ": " + (d.detail || "");
-      out.className = "result " + (r.ok ? "ok" : "bad");
+      const final = d.seq !== undefined && d.seq !== null && WSG.finals[d.command];
+      if (r.status === 202 && final && final.seq > d.seq) {
+        // the WebSocket brought the final result before this reply: show it, not E_CMD_PENDING
+        showResult(out, final.status === "E_SUCCESS", final.status);
+      } else if (r.ok) {
+        showResult(out, true, d.status || d.action || "OK");
+        if (r.status === 202) out.dataset.seq = d.seq;
+      } else {
+        showResult(out, false, (d.status || (r.status ? "error " + r.status : "failed")) + ": " + (d.detail || ""));
+      }
     }
+    form.dispatchEvent(new CustomEvent("wsg:done", { detail: r }));  // pages refresh what it changed
     return r;
   }
   WSG.submit = submit;
 
+  async function stopOrAck(path, what) {
+    const r = await WSG.api("POST", path);
+    banner(r.ok ? "" : what + " failed: " + (r.data.detail || r.status), r.ok ? "" : "bad");
+    if (r.ok) announce(what + " sent");
+  }
+
+  // a table wider than a phone scrolls sideways: keyboard users must be able to focus it to scroll
+  function markScrollable() {
+    for (const t of document.querySelectorAll("main table")) {
+      if (t.scrollWidth > t.clientWidth + 1) t.tabIndex = 0; else t.removeAttribute("tabindex");
+    }
+  }
+  WSG.markScrollable = markScrollable;
+
   document.addEventListener("DOMContentLoaded", function () {
+    setupMenus();
+    markScrollable();
+    window.addEventListener("resize", markScrollable);
     for (const form of document.querySelectorAll("form.cmd")) {
+      form.noValidate = true;  // one error style: the server's reason beside the field, not a browser bubble
       form.addEventListener("submit", function (ev) {
         ev.preventDefault();
         submit(form, "POST", form.dataset.endpoint);
@@ -140,19 +306,17 @@
       }
     }
     const stop = document.getElementById("btn-stop");
-    const ack = document.getElementById("btn-ack");
-    stop.addEventListener("click", async function () {
-      const r = await WSG.api("POST", "/api/stop");
-      banner(r.ok ? "" : "Stop: " + (r.data.detail || r.status), r.ok ? "" : "bad");
-    });
-    ack.addEventListener("click", async function () {
-      const r = await WSG.api("POST", "/api/ack");
-      banner(r.ok ? "" : "Ack: " + (r.data.detail || r.status), r.ok ? "" : "bad");
-    });
+    stop.addEventListener("click", function () { stopOrAck("/api/stop", "Stop"); });
+    document.getElementById("btn-ack").addEventListener("click", function () { stopOrAck("/api/ack", "Ack"); });
+    const skip = document.getElementById("skip-stop");
+    if (skip) skip.addEventListener("click", function (ev) { ev.preventDefault(); stop.focus(); });
     if (!canWrite) {
       for (const b of document.querySelectorAll("main button, #gripper-box button")) b.disabled = true;
       banner("Read-only: log in to move the fingers or change settings.", "info");
     }
     if (!document.body.dataset.noLive) WSG.connect(WSG.liveParams || {});
+    WSG.loadIdentity();
+    // the tag can change from any client (51h): refresh while the connection is live
+    setInterval(function () { if (WSG.live) WSG.loadIdentity(); }, 5000);
   });
 })();

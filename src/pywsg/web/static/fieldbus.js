@@ -47,11 +47,30 @@
     });
     tbody.parentElement.dataset.hex = image.hex;
   }
+  // Bus State (003 §6): station address from Settings → Command Interface, the rest from the server
+  function busState(bus) {
+    if (!bus) return;
+    const el = document.getElementById("fb-state");
+    const ago = bus.last_write === null ? "no write yet" :
+      "last write " + Math.max(0, bus.now - bus.last_write).toFixed(1) + " s ago";
+    const masters = bus.masters + (bus.masters === 1 ? " master" : " masters") + " connected";
+    el.textContent = bus.state === "online" ? "Online: " + masters + ", " + ago :
+      bus.state === "waiting" ? "Waiting: no Modbus master connected (" + ago + ")" :
+      "Offline: no Modbus/TCP server (wsg sim --modbus-port)";
+    el.dataset.state = bus.state;
+    document.getElementById("fb-interface").textContent = "Modbus/TCP" + (bus.port ? " (port " + bus.port + ")" : "");
+  }
+  WSG.api("GET", "/api/interface").then(function (r) {
+    if (!r.ok) return;
+    document.getElementById("fb-station").textContent = r.data.values.profibus_address +
+      " (stored under Settings → Command Interface; Modbus/TCP answers any unit id)";
+  });
+  document.getElementById("fb-bitrate").textContent = "n/a: Modbus/TCP runs over Ethernet (a PROFIBUS WSG detects it)";
   let lastKey = "";
   WSG.listeners.push(function (msg) {
     const fb = msg.fieldbus;
     if (!fb) return;
-    document.getElementById("fb-state").textContent = fb.available ? "Online" : "no fieldbus controller";
+    busState(fb.bus);
     const key = JSON.stringify([fb.output.hex, fb.input.hex, fb.available]);
     if (key === lastKey) return;  // re-render only on change
     lastKey = key;

@@ -6,6 +6,7 @@
   const tbody = document.querySelector("#settings-table tbody");
   let fields = [];
   let values = {};
+  const POWER_CYCLE = ["model", "serial_number", "finger1", "finger2"];  // like a real device: a restart
 
   function input(f, value) {
     const kind = f.kind.replace("?", "");
@@ -94,6 +95,11 @@
     }
     const out = document.getElementById("settings-result");
     if (!Object.keys(changes).length) { out.textContent = "nothing changed"; out.className = "result"; return; }
+    const cycling = Object.keys(changes).filter(function (k) { return POWER_CYCLE.indexOf(k) >= 0; });
+    if (cycling.length && !window.confirm("Changing " + cycling.join(", ") + " power-cycles the virtual gripper: " +
+        "a running motion stops and homing is lost (the fingers must be referenced again). Apply?")) {
+      out.textContent = "not applied"; out.className = "result"; return;
+    }
     const r = await WSG.api("POST", "/api/settings", changes);
     WSG.showErrors(form, r.data && r.data.errors);
     if (r.ok) {
@@ -106,4 +112,52 @@
     }
   });
   load();
+
+  // -- Motion Configuration: statistics, soft limits, jog (Command Interface: the device tag) -----
+  async function loadMotion() {
+    const st = await WSG.api("GET", "/api/statistics");
+    if (st.ok) {
+      document.getElementById("stat-total").textContent = st.data.total;
+      document.getElementById("stat-no-part").textContent = st.data.no_part;
+      document.getElementById("stat-lost").textContent = st.data.lost_part;
+    }
+    const sl = await WSG.api("GET", "/api/soft-limits");
+    if (sl.ok) {
+      document.getElementById("soft-now").textContent = sl.data.minus === null ? "none set" :
+        WSG.fmt(sl.data.minus, 2, "mm") + " … " + WSG.fmt(sl.data.plus, 2, "mm");
+    }
+  }
+  if (document.getElementById("motion-panels")) {
+    loadMotion();
+    for (const id of ["form-stats", "form-soft-limits"]) {
+      // when the common handler has the answer: show what the device has now
+      document.getElementById(id).addEventListener("wsg:done", loadMotion);
+    }
+    const jogForm = document.getElementById("form-jog");
+    jogForm.addEventListener("submit", function (ev) { ev.stopImmediatePropagation(); ev.preventDefault(); });
+    const out = jogForm.querySelector("output.result");
+    let jogging = false;
+    async function jog(direction) {
+      const speed = Number(jogForm.querySelector("[name=speed]").value || 0);
+      const r = await WSG.api("POST", "/api/jog", direction === "stop" ? { direction } : { direction, speed });
+      WSG.showErrors(jogForm, r.data && r.data.errors);
+      WSG.showResult(out, r.ok, r.ok ? (direction === "stop" ? "stopped" : "jogging " + direction) :
+        (r.data.status || "error") + ": " + (r.data.detail || ""));
+    }
+    for (const btn of jogForm.querySelectorAll("button.jog")) {
+      const start = function (ev) { ev.preventDefault(); if (!jogging) { jogging = true; jog(btn.dataset.direction); } };
+      const end = function () { if (jogging) { jogging = false; jog("stop"); } };
+      btn.addEventListener("pointerdown", start);
+      btn.addEventListener("pointerup", end);
+      btn.addEventListener("pointerleave", end);
+      btn.addEventListener("blur", end);
+      btn.addEventListener("keydown", function (ev) { if ((ev.key === " " || ev.key === "Enter") && !ev.repeat) start(ev); });
+      btn.addEventListener("keyup", function (ev) { if (ev.key === " " || ev.key === "Enter") end(); });
+    }
+  }
+  const tagInput = document.getElementById("tag-input");
+  if (tagInput) {
+    WSG.api("GET", "/api/identity").then(function (r) { if (r.ok && r.data.tag !== null) tagInput.value = r.data.tag; });
+    document.getElementById("form-tag").addEventListener("wsg:done", WSG.loadIdentity);
+  }
 })();
