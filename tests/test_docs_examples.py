@@ -6,9 +6,11 @@ The rules, for whoever writes docs:
   ``bash -e`` with the venv's ``wsg`` first on PATH, one block after the other in the order of the page,
   against one ``wsg sim`` per page started the way the docs start it (defaults: no part between the
   fingers, not referenced at first), like a reader following along in a second terminal.
+* Pages run at once (one thread, sim and directory each); the blocks of a page one after the other.
 * The sim runs on free ports, so the harness rewrites the default ones in each block:
   ``tcp://127.0.0.1:1000``, ``udp://127.0.0.1:1500`` (replies to 1501), the web port 8080 and the
-  Modbus port 5020. ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
+  Modbus port 5020; ``wsg proxy --listen 2000`` (and ``127.0.0.1:2000``) gets a free port too.
+  ``WSG_URL`` points at the sim's TCP interface, ``WSG_SIM`` at its web address.
   Lines that start ``wsg sim`` are dropped from sh blocks: that sim is the one already running.
 * ```` ```text ```` blocks are output or syntax shown to the reader and never run. Every other block
   needs a language, and a block that must not run (a real gripper's address, an endless server, an API
@@ -24,11 +26,13 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import socket
 import subprocess
 import sys
 import textwrap
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -103,6 +107,7 @@ class PageSim:
 
     def __init__(self) -> None:
         self.reply_port = free_port(socket.SOCK_DGRAM)
+        self.proxy_port = free_port()  # the docs' `wsg proxy --listen 2000`
         argv = [str(BIN / "wsg"), "sim", "--json", "--no-uvloop", "--tcp-port", "0", "--udp-port", "0",
                 "--udp-reply-port", str(self.reply_port), "--serial", "off", "--web-port", "0",
                 "--modbus-port", "0"]
@@ -134,6 +139,7 @@ class PageSim:
 
         code = re.sub(r"tcp://(127\.0\.0\.1|localhost):1000\b", rf"tcp://\1:{tcp}", code)
         code = re.sub(r"udp://(?P<host>127\.0\.0\.1|localhost):1500(?P<query>\?[^\s\"'`)]*)?", udp_url, code)
+        code = re.sub(r"(--listen |127\.0\.0\.1:)2000\b", rf"\g<1>{self.proxy_port}", code)  # wsg proxy
         code = re.sub(r"\b5020\b", str(self.port("modbus")), code)
         code = re.sub(r"\b8080\b", str(self.port("web")), code)
         return code.replace(".venv/bin/", f"{BIN}/")
@@ -168,18 +174,32 @@ def run_block(block: Block, sim: PageSim, workdir: Path) -> str | None:
         code = "\n".join(": # harness: that wsg sim is already running" if re.match(
             r"\s*(\S*/)?wsg\s+sim\b", line) else line for line in code.splitlines()) + "\n"
         argv = ["bash", "-e", "-o", "pipefail", "-c", code]
-    try:
-        r = subprocess.run(argv, capture_output=True, text=True, timeout=BLOCK_TIMEOUT, env=env, cwd=workdir,
-                           stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired as exc:
-        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else exc.stdout or ""
+    # Output goes to files, not pipes, and the block runs in its own session: when the block ends, whatever
+    # it left running in the background (a `wsg proxy &` of a failed block) is ended with it instead of
+    # holding a pipe open until the timeout.
+    out_path, err_path = workdir / f"block_{block.line}.out", workdir / f"block_{block.line}.err"
+    with out_path.open("w") as out_f, err_path.open("w") as err_f:
+        proc = subprocess.Popen(argv, stdout=out_f, stderr=err_f, env=env, cwd=workdir, stdin=subprocess.DEVNULL,
+                                start_new_session=True)
+        try:
+            returncode: int | None = proc.wait(BLOCK_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            returncode = None
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait()
+    stdout, stderr = out_path.read_text(errors="replace"), err_path.read_text(errors="replace")
+    if returncode is None:
         return (f"{block.where}: ```{block.lang} block still running after {BLOCK_TIMEOUT:g} s\n"
-                f"--- block as run ---\n{_numbered(code)}\n--- stdout ---\n{_tail(out)}")
-    if r.returncode == 0:
+                f"--- block as run ---\n{_numbered(code)}\n--- stdout ---\n{_tail(stdout)}")
+    if returncode == 0:
         return None
-    return (f"{block.where}: ```{block.lang} block failed (exit {r.returncode})\n"
+    return (f"{block.where}: ```{block.lang} block failed (exit {returncode})\n"
             f"--- block as run ---\n{_numbered(code)}\n"
-            f"--- stdout ---\n{_tail(r.stdout)}\n--- stderr ---\n{_tail(r.stderr)}\n"
+            f"--- stdout ---\n{_tail(stdout)}\n--- stderr ---\n{_tail(stderr)}\n"
             "Fix the example, or mark it <!-- not-run: reason --> on the line before if it is an illustration.")
 
 
@@ -187,12 +207,24 @@ def _ids(page: Path) -> str:
     return str(page.relative_to(ROOT))
 
 
-@pytest.fixture
-def workdir(tmp_path: Path) -> Iterator[Path]:
+def _workdir(tmp_path: Path) -> Path:
     """Where blocks run: a scratch directory that sees the checkout's docs/ and scripts/."""
     for name in ("docs", "scripts"):
         (tmp_path / name).symlink_to(ROOT / name)
-    yield tmp_path
+    return tmp_path
+
+
+def run_page(page: Path, workdir: Path) -> tuple[int, list[str]]:
+    """Run the page's blocks in order against its own sim: (blocks run, failure reports)."""
+    runnable = [b for b in blocks_of(page) if b.not_run is None and b.lang in RUN_PY | RUN_SH]
+    sim = PageSim()
+    try:
+        return len(runnable), [f for b in runnable if (f := run_block(b, sim, workdir)) is not None]
+    finally:
+        sim.stop()
+
+
+RUN_PAGES = [p for p in PAGES if any(b.not_run is None and b.lang in RUN_PY | RUN_SH for b in blocks_of(p))]
 
 
 @pytest.mark.parametrize("page", PAGES, ids=_ids)
@@ -218,17 +250,27 @@ def test_docs_stand_alone(page: Path) -> None:
     assert not found, "references to files that are not in the repository:\n" + "\n".join(found)
 
 
+@pytest.fixture(scope="module")
+def page_runs(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+              ) -> Iterator[dict[Path, Future[tuple[int, list[str]]]]]:
+    """The selected pages all run at once, each in its own thread with its own sim and directory.
+
+    The blocks mostly wait on motion in real time (a homing, a move at 100 mm/s, a demo cycle), not on
+    the CPU, so the pages overlap instead of queueing: the slowest page sets the time, not their sum.
+    Within a page the blocks still run one after the other, as a reader runs them.
+    """
+    selected = [p for p in RUN_PAGES if any(
+        item.originalname == "test_examples_run_as_written" and item.callspec.params.get("page") == p
+        for item in request.session.items if isinstance(item, pytest.Function) and hasattr(item, "callspec"))]
+    with ThreadPoolExecutor(max_workers=max(1, len(selected))) as pool:
+        yield {p: pool.submit(run_page, p, _workdir(tmp_path_factory.mktemp(p.stem))) for p in selected}
+
+
 @pytest.mark.realtime
-@pytest.mark.parametrize("page", [p for p in PAGES if any(
-    b.not_run is None and b.lang in RUN_PY | RUN_SH for b in blocks_of(p))], ids=_ids)
-def test_examples_run_as_written(page: Path, workdir: Path) -> None:
-    runnable = [b for b in blocks_of(page) if b.not_run is None and b.lang in RUN_PY | RUN_SH]
-    sim = PageSim()
-    try:
-        failures = [f for b in runnable if (f := run_block(b, sim, workdir)) is not None]
-    finally:
-        sim.stop()
-    assert not failures, f"{len(failures)} of {len(runnable)} blocks failed\n\n" + "\n\n".join(failures)
+@pytest.mark.parametrize("page", RUN_PAGES, ids=_ids)
+def test_examples_run_as_written(page: Path, page_runs: dict[Path, Future[tuple[int, list[str]]]]) -> None:
+    count, failures = page_runs[page].result(timeout=BLOCK_TIMEOUT * 20)
+    assert not failures, f"{len(failures)} of {count} blocks failed\n\n" + "\n\n".join(failures)
 
 
 def test_the_harness_reads_markers_and_rewrites_ports(tmp_path: Path) -> None:
@@ -253,8 +295,11 @@ def test_the_harness_reads_markers_and_rewrites_ports(tmp_path: Path) -> None:
                                                           (10, "", None)]
     sim = PageSim.__new__(PageSim)
     sim.reply_port = 40001
+    sim.proxy_port = 42000
     sim.urls = {"tcp": "tcp://127.0.0.1:41000", "udp": "udp://127.0.0.1:41500?reply_port=40001",
                 "modbus": "modbus-tcp://127.0.0.1:45020", "web": "http://127.0.0.1:48080/"}
     assert sim.rewrite(got[1].code) == 'wsg --url "udp://127.0.0.1:41500?reply_port=40001" state\n'
     assert sim.rewrite("tcp://127.0.0.1:1000 udp://127.0.0.1:1500?reply_port=0 -p 5020 :8080/") == \
         "tcp://127.0.0.1:41000 udp://127.0.0.1:41500?reply_port=0 -p 45020 :48080/"
+    assert sim.rewrite("wsg proxy --listen 2000; wsg --url tcp://127.0.0.1:2000 home; sleep 2000") == \
+        "wsg proxy --listen 42000; wsg --url tcp://127.0.0.1:42000 home; sleep 2000"

@@ -133,3 +133,11 @@ def test_output_roundtrip(data: bytes) -> None:
 def test_input_roundtrip(data: bytes) -> None:
     assert InputImage.unpack(data).pack() == data
     assert InputImage.from_registers(InputImage.unpack(data).registers()).pack() == data
+
+
+def test_cmdflags_print_their_names() -> None:
+    """CMDFLAGS (002 §3.1, output byte 0) print as names, like SystemFlag: a register 0120h is MOVE."""
+    assert str(OutputImage.from_registers([0x0120, 0, 0, 0]).cmdflags) == "MOVE"
+    assert str(CmdFlag.GRIP | CmdFlag.FASTSTOP) == "GRIP|FASTSTOP"
+    assert str(CmdFlag(0)) == "NONE"
+    assert f"{CmdFlag.HOMING:#04x}" == "0x08"  # a format spec still formats the number

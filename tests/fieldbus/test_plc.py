@@ -95,6 +95,20 @@ async def test_async_fieldbus_gripper(sim: SimServer) -> None:
         assert not (await g.read()).sysstate & SystemFlag.SF_MOVING
 
 
+async def test_a_move_to_where_the_fingers_are_returns_at_once(sim: SimServer) -> None:
+    """002 §4.1 MOVE to the current width: the gripper is done before the first read shows it running;
+    the command returns its result instead of waiting 10 s for a start it cannot see."""
+    g = await AsyncFieldbusGripper.open("127.0.0.1", sim.modbus_port or 0)
+    async with g:
+        await g.homing()
+        await g.move(30.0, 400.0)
+        loop = asyncio.get_running_loop()
+        t0 = loop.time()
+        img = await g.move(30.0, 400.0, timeout=5.0)
+        assert loop.time() - t0 < 2.0
+        assert img.status == Status.E_SUCCESS and img.width_mm == pytest.approx(30.0)
+
+
 async def test_grip_without_part_raises_with_the_image(sim: SimServer) -> None:
     async with await AsyncFieldbusGripper.open("127.0.0.1", sim.modbus_port or 0) as g:
         await g.homing()

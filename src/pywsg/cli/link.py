@@ -4,7 +4,8 @@
 would refuse), so it talks through this thin blocking link rather than the typed driver. Every
 frame sent and received goes to the :class:`~pywsg.cli.commlog.CommLog` when one is given.
 Over TCP the link announces its disconnect (07h) before closing, so leaving does not raise a
-FAST STOP on the gripper (command manual 1.4.2, 3.1.2).
+FAST STOP on the gripper (command manual 1.4.2, 3.1.2). Over CAN it uses the driver's CAN transport
+(:mod:`pywsg.client.can_transport`, the same fragmenting and acceptance filter).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections import deque
 from types import TracebackType
 from typing import Any
 
+from ..client.can_transport import CanSyncTransport
 from ..client.url import Endpoint, parse_url
 from ..protocol import Command, Frame, FrameParser, Status
 from ..protocol.parser import ChecksumMismatch, Event, ParseError, parse_datagram
@@ -29,7 +31,7 @@ class LinkError(OSError):
 
 
 class Link:
-    """Blocking link to a gripper at ``url`` (tcp://, udp://, serial://)."""
+    """Blocking link to a gripper at ``url`` (tcp://, udp://, serial://, can://)."""
 
     def __init__(self, url: str, log: CommLog | None = None, connect_timeout: float = 3.0) -> None:
         self.endpoint: Endpoint = parse_url(url)
@@ -38,6 +40,7 @@ class Link:
         self._queue: deque[Event] = deque()
         self._sock: socket.socket | None = None
         self._serial: Any = None
+        self._can: CanSyncTransport | None = None
         ep = self.endpoint
         try:
             if ep.scheme == "tcp":
@@ -49,6 +52,8 @@ class Link:
                 self._sock.bind((ep.bind or "", ep.reply_port))
                 if ep.reply_port == 0:  # replies come back to our source port
                     self._sock.connect((ep.host, ep.port))
+            elif ep.scheme == "can":
+                self._can = CanSyncTransport(ep, timeout=connect_timeout)
             else:
                 import serial
 
@@ -65,7 +70,9 @@ class Link:
         if self.log is not None and frame is not None:
             self.log.record("tx", frame)
         try:
-            if self._serial is not None:
+            if self._can is not None:
+                self._can.send(wire)
+            elif self._serial is not None:
                 self._serial.write(wire)
                 self._serial.flush()
             elif self.endpoint.scheme == "udp":
@@ -80,6 +87,12 @@ class Link:
 
     # -- receiving -------------------------------------------------------------------------------
     def _read(self, timeout: float) -> list[Event]:
+        if self._can is not None:
+            try:
+                data = self._can.recv(timeout)
+            except OSError as exc:
+                raise LinkError(exc.errno or 0, f"receive from {self.endpoint} failed: {exc}") from None
+            return self._parser.feed(data) if data else []
         if self._serial is not None:
             deadline = time.monotonic() + timeout
             while True:
@@ -143,6 +156,9 @@ class Link:
             if self._serial is not None:
                 self._serial.close()
                 self._serial = None
+            if self._can is not None:
+                self._can.close()
+                self._can = None
 
     def __enter__(self) -> Link:
         return self

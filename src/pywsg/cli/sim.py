@@ -13,6 +13,27 @@ import click
 
 from .runner import PORT
 
+
+class _CanId(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
+    """An 11-bit CAN identifier, decimal or 0x.. (the sim's CAN side uses standard identifiers)."""
+
+    name = "id"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        if isinstance(value, int):
+            ident = value
+        else:
+            try:
+                ident = int(str(value), 0)
+            except ValueError:
+                self.fail(f"{value!r} is not an integer (decimal or 0x..)", param, ctx)
+        if not 0 <= ident <= 0x7FF:
+            self.fail(f"{value} is not an 11-bit CAN identifier (0..0x7FF)", param, ctx)
+        return ident
+
+
+CAN_ID = _CanId()
+
 MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
 
 
@@ -63,6 +84,12 @@ def _json_line(line: str) -> str:
 @click.option("--can", "can_channel", default=None, metavar="CHANNEL",
               help="CAN interface on this python-can channel (inferred mapping, see docs/sim.md).")
 @click.option("--can-interface", default="virtual", show_default=True, help="python-can interface.")
+@click.option("--can-rx-id", type=CAN_ID, default="0x01", show_default=True, metavar="ID",
+              help="CAN identifier the sim receives requests on (a client's request_id), 11 bits, e.g. 0x10.")
+@click.option("--can-tx-id", type=CAN_ID, default="0x02", show_default=True, metavar="ID",
+              help="CAN identifier the sim sends replies on (a client's reply_id), 11 bits.")
+@click.option("--can-bitrate", type=click.IntRange(min=1), default=500_000, show_default=True, metavar="BIT/S",
+              help="CAN bit rate for a hardware interface (ignored by the virtual bus).")
 @click.option("--modbus-port", type=PORT, default="off", show_default=True,
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
@@ -99,6 +126,9 @@ def sim(
     baudrate: int,
     can_channel: str | None,
     can_interface: str,
+    can_rx_id: int,
+    can_tx_id: int,
+    can_bitrate: int,
     modbus_port: int | None,
     web_port: int | None,
     max_modbus_connections: int,
@@ -117,6 +147,9 @@ def sim(
     Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
     sockets closed). With --count N, gripper i listens on each given port + i.
     """
+    if can_rx_id == can_tx_id:
+        raise click.BadParameter(f"0x{can_tx_id:X} is also --can-rx-id: requests and replies need their own "
+                                 "identifiers", param_hint="--can-tx-id")
     from ..server.limits import Limits
     from ..server.sim import SimError, SimOptions, run_sim
 
@@ -148,6 +181,9 @@ def sim(
         baudrate=baudrate,
         can_channel=can_channel,
         can_interface=can_interface,
+        can_rx_id=can_rx_id,
+        can_tx_id=can_tx_id,
+        can_bitrate=can_bitrate,
         modbus_port=modbus_port,
         web_port=web,
         settings=settings_file,

@@ -31,9 +31,9 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, replace
-from enum import IntFlag
 
 from ..protocol import GripperState, GState, Status, SystemFlag
+from ..protocol.flags import NamedFlag
 
 OUTPUT_SIZE = 8
 INPUT_SIZE = 12
@@ -64,8 +64,11 @@ INT16_MIN, INT16_MAX = -0x8000, 0x7FFF
 UINT16_MAX = 0xFFFF
 
 
-class CmdFlag(IntFlag):
-    """CMDFLAGS, output byte 0. Commands fire on a 0→1 edge; JOG+ / JOG- are levels."""
+class CmdFlag(NamedFlag):
+    """CMDFLAGS, output byte 0. Commands fire on a 0→1 edge; JOG+ / JOG- are levels.
+
+    Prints its names (``MOVE``, ``GRIP|FASTSTOP``, ``NONE``), like the other flag types.
+    """
 
     NONE = 0
     MOVE = 1 << 0

@@ -138,10 +138,14 @@ class AsyncFieldbusGripper:
             await self.write(base)
         await self.write(replace(base, cmdflags=base.cmdflags | flag))
         running = _RUNNING.get(flag)
+        target = base.width if flag == CmdFlag.MOVE else None
 
         def started(i: InputImage) -> bool:
             if i.status == Status.E_CMD_PENDING or (running is not None and i.gstate & running):
                 return True
+            if (target is not None and i.status == Status.E_SUCCESS and abs(i.width - target) <= 1
+                    and i.sysstate & SystemFlag.SF_TARGET_POS_REACHED):
+                return True  # a MOVE to where the fingers already are can end before the first read
             if flag == CmdFlag.FASTSTOP:
                 return bool(i.sysstate & SystemFlag.SF_FAST_STOP)
             if flag == CmdFlag.STOP_ACK:

@@ -61,7 +61,11 @@ class SimOptions:
     """python-can channel (inferred mapping, see docs/sim.md); None: no CAN."""
     can_interface: str = "virtual"
     can_rx_id: int = 0x01
+    """CAN identifier the sim receives requests on (a client's ``request_id``), 11 bits."""
     can_tx_id: int = 0x02
+    """CAN identifier the sim sends replies on (a client's ``reply_id``), 11 bits."""
+    can_bitrate: int = 500_000
+    """Bit rate in bit/s for a hardware CAN interface (the virtual bus has none)."""
     modbus_port: int | None = None
     web_port: int | None = None
     settings: Path | None = None
@@ -301,7 +305,7 @@ class SimServer:
         if opts.can_channel:
             channel = opts.can_channel if opts.count == 1 else f"{opts.can_channel}{i}"
             sg.can = await CanServer(
-                g, r, channel, opts.can_interface, opts.can_rx_id, opts.can_tx_id
+                g, r, channel, opts.can_interface, opts.can_rx_id, opts.can_tx_id, opts.can_bitrate
             ).start()
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
