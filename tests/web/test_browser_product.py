@@ -359,6 +359,8 @@ def test_plots_show_no_position_before_homing_and_round_nonnegative_ticks(fresh_
     api = client_for(sim)
     home(sim, api)
     page.wait_for_function("WSG.plots.width.points.some(p => p[1] !== null)")
+    # the axis is rescaled on the next animation frame after the first real width arrives
+    page.wait_for_function("Math.max(...WSG.plots.width.ticks) >= 110")
     ticks = page.evaluate("WSG.plots.width.ticks")
     assert min(ticks) >= 0 and max(ticks) >= 110, ticks
     api.close()
