@@ -68,8 +68,10 @@ def sim_ids() -> Iterator[str]:
     gen = started(SimThread)
     make = next(gen)
     ch = f"wsg-{uuid.uuid4().hex[:8]}"
-    make(tcp_port=None, udp_port=None, serial=None, can_channel=ch, can_rx_id=0x10, can_tx_id=0x11)
-    yield f"can://{ch}?interface=virtual&request_id=0x10&reply_id=0x11"
+    st = make(tcp_port=None, udp_port=None, serial=None, can_channel=ch, can_rx_id=0x10, can_tx_id=0x11)
+    url = st.sim.grippers[0].can.address  # the URL `wsg sim` prints: a client connects with it as it is
+    assert url == f"can://{ch}?interface=virtual&request_id=0x10&reply_id=0x11"
+    yield url
     next(gen, None)
 
 

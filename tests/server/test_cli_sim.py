@@ -129,6 +129,33 @@ def test_wsg_sim_modbus_and_web_interfaces() -> None:
     assert rc == 0
 
 
+def test_wsg_sim_web_allowed_host_admits_that_name_only() -> None:
+    """--web-allowed-host NAME: the web interface answers Host: NAME; other names stay refused (400)."""
+    import http.client
+
+    proc, lines = start_sim(
+        "--tcp-port", "off", "--udp-port", "off", "--serial", "off", "--web-port", "0",
+        "--web-allowed-host", "gripper.lab", "--web-allowed-host", "cell7.example", lines=1,
+    )
+    try:
+        port = int(lines[0].rsplit(":", 1)[1].rstrip("/"))
+
+        def status(host: str) -> int:
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+            conn.request("GET", "/api/state", headers={"Host": f"{host}:{port}"})
+            code = conn.getresponse().status
+            conn.close()
+            return code
+
+        assert status("gripper.lab") != 400
+        assert status("cell7.example") != 400
+        assert status("127.0.0.1") != 400
+        assert status("rebind.example") == 400
+    finally:
+        rc, _ = stop(proc)
+    assert rc == 0
+
+
 def test_wsg_sim_port_in_use_is_a_clear_error() -> None:
     blocker = socket.socket()
     blocker.bind(("127.0.0.1", 0))

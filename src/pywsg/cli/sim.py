@@ -94,6 +94,9 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
+@click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
+              help="A further host name the web interface may be reached by (repeatable). Loopback names and the "
+              "bound address are always allowed; any other Host header is refused (DNS rebinding guard).")
 @click.option("--max-modbus-connections", type=click.IntRange(1, 1000), default=32, show_default=True,
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
@@ -131,6 +134,7 @@ def sim(
     can_bitrate: int,
     modbus_port: int | None,
     web_port: int | None,
+    web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
     settings_file: Path | None,
@@ -189,6 +193,7 @@ def sim(
         settings=settings_file,
         count=count,
         limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections),
+        web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
     )
 
     as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json

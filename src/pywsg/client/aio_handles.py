@@ -13,8 +13,9 @@ from typing import TYPE_CHECKING, Any
 from ..errors import TimeoutError
 from ..protocol import Command, Frame, Status
 from .calls import Call
-from .core import raise_for, sample_of, status_of
+from .core import sample_of
 from .demux import Sink, Waiter
+from .motion import MotionBase
 from .types import Sample
 
 if TYPE_CHECKING:
@@ -44,34 +45,19 @@ class AWaiter(Waiter):
 
 
 
-class AsyncMotion:
+class AsyncMotion(MotionBase):
     """A running motion (``wait=False``): ``await motion`` or ``await motion.wait(timeout)``.
 
     ``wait()`` returns None when the motion ended with E_SUCCESS and raises the matching
     :class:`~pywsg.errors.WsgError` otherwise (e.g. ``AbortedError`` after ``stop()``).
     """
 
+    _final: AWaiter | None
+
     def __init__(self, gripper: AsyncGripper, call: Call[Any], final: AWaiter | None,
                  frame: Frame | None = None) -> None:
+        super().__init__(call, final, frame)
         self._gripper = gripper
-        self._call = call
-        self._final = final
-        self._frame = frame  # set when the motion is already over
-        self._error: BaseException | None = None
-        self._checked = False
-        self.command = Command(call.command_id)
-        self.started = time.monotonic()
-
-    def done(self) -> bool:
-        """True once the final frame arrived (or the connection failed)."""
-        return self._frame is not None or (self._final is not None and self._final.done)
-
-    @property
-    def status(self) -> Status | int | None:
-        """The final status, or None while the motion runs."""
-        if self._final is not None and self._final.frame is not None:
-            return status_of(self._final.frame)
-        return status_of(self._frame) if self._frame is not None else None
 
     async def wait(self, timeout: float | None = None) -> None:
         """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
@@ -81,30 +67,17 @@ class AsyncMotion:
             raise self._error
 
     async def _settle(self, timeout: float) -> None:
-        w = self._final
-        if self._frame is None and w is not None:
-            if not w.done:
-                try:
-                    await asyncio.wait_for(asyncio.shield(w.fut), timeout)
-                except builtins.TimeoutError:
-                    raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
-                                       f"motion not finished within {timeout:g} s", from_device=False) from None
-            if w.error is not None:
-                self._error = w.error
-                self._checked = True
-                return
-            self._frame = w.frame
-        assert self._frame is not None
-        if status_of(self._frame) != Status.E_SUCCESS:
-            flags = await self._gripper._flags_quietly()
-            self._error = raise_for(self._call, self._frame, flags)
-        self._checked = True
+        if self._waiting():
+            assert self._final is not None
+            try:
+                await asyncio.wait_for(asyncio.shield(self._final.fut), timeout)
+            except builtins.TimeoutError:
+                raise self._timed_out(timeout) from None
+        if self._failed():
+            self._fail(await self._gripper._flags_quietly())
 
     def __await__(self) -> Any:
         return self.wait().__await__()
-
-    def __repr__(self) -> str:
-        return f"<AsyncMotion {self.command.name} {'done' if self.done() else 'running'}>"
 
 
 class AsyncStream(Sink):

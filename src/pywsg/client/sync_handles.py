@@ -14,37 +14,22 @@ from typing import TYPE_CHECKING, Any
 from ..errors import TimeoutError
 from ..protocol import Command, Frame, Status
 from .calls import Call
-from .core import raise_for, sample_of, status_of
+from .core import sample_of
 from .demux import Sink, Waiter
+from .motion import MotionBase
 from .types import Sample
 
 if TYPE_CHECKING:
     from .sync import Gripper
 
 
-class Motion:
+class Motion(MotionBase):
     """A running motion (``wait=False``): ``motion.wait(timeout)`` returns None on success and raises
     the matching :class:`~pywsg.errors.WsgError` otherwise."""
 
     def __init__(self, gripper: Gripper, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
+        super().__init__(call, final, frame)
         self._gripper = gripper
-        self._call = call
-        self._final = final
-        self._frame = frame
-        self._error: BaseException | None = None
-        self._checked = False
-        self.command = Command(call.command_id)
-        self.started = time.monotonic()
-
-    def done(self) -> bool:
-        """True once the final frame arrived (or the connection failed)."""
-        return self._frame is not None or (self._final is not None and self._final.done)
-
-    @property
-    def status(self) -> Status | int | None:
-        if self._final is not None and self._final.frame is not None:
-            return status_of(self._final.frame)
-        return status_of(self._frame) if self._frame is not None else None
 
     def wait(self, timeout: float | None = None) -> None:
         """Wait for the final frame (``timeout`` s, default the gripper's ``motion_timeout``)."""
@@ -54,26 +39,13 @@ class Motion:
             raise self._error
 
     def _settle(self, timeout: float) -> None:
-        w = self._final
-        if self._frame is None and w is not None:
-            if not w.done:
-                self._gripper._wait_for(w, timeout, abandon=False)
-            if not w.done:
-                raise TimeoutError(Status.E_TIMEOUT, self._call.command_id,
-                                   f"motion not finished within {timeout:g} s", from_device=False)
-            if w.error is not None:
-                self._error = w.error
-                self._checked = True
-                return
-            self._frame = w.frame
-        assert self._frame is not None
-        if status_of(self._frame) != Status.E_SUCCESS:
-            self._error = raise_for(self._call, self._frame, self._gripper._flags_quietly())
-        self._checked = True
-
-    def __repr__(self) -> str:
-        return f"<Motion {self.command.name} {'done' if self.done() else 'running'}>"
-
+        if self._waiting():
+            assert self._final is not None
+            self._gripper._wait_for(self._final, timeout, abandon=False)
+            if not self._final.done:
+                raise self._timed_out(timeout)
+        if self._failed():
+            self._fail(self._gripper._flags_quietly())
 
 
 class Stream(Sink):

@@ -67,7 +67,10 @@ class CanServer:
 
     @property
     def address(self) -> str:
-        return f"can://{self.interface}/{self.channel}?rx_id=0x{self.rx_id:X}&tx_id=0x{self.tx_id:X} (inferred)"
+        """The URL a client connects with (its ``request_id`` is our ``rx_id``), e.g. for ``wsg --url``."""
+        rate = "" if self.interface == "virtual" else f"&bitrate={self.bitrate}"
+        return (f"can://{self.channel}?interface={self.interface}{rate}"
+                f"&request_id=0x{self.rx_id:X}&reply_id=0x{self.tx_id:X}")
 
     def _on_message(self, msg: Any) -> None:
         if (msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame

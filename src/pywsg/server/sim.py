@@ -190,7 +190,7 @@ class SimGripper:
         if self.serial:
             out.append(f"{tag}serial   {self.serial.address}")
         if self.can:
-            out.append(f"{tag}CAN      {self.can.address}")
+            out.append(f"{tag}CAN      {self.can.address} (inferred mapping)")
         if self.modbus is not None:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
         if self.web is not None:
