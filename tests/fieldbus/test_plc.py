@@ -33,7 +33,7 @@ async def sim() -> AsyncIterator[SimServer]:
 
 async def _plc_demo(port: int, *args: str) -> tuple[int, str]:
     proc = await asyncio.create_subprocess_exec(
-        WSG, "plc-demo", "--port", str(port), "--timeout", "25", *args,
+        WSG, "plc-demo", "--url", f"modbus-tcp://127.0.0.1:{port}", "--timeout", "25", *args,
         stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
     out, _ = await asyncio.wait_for(proc.communicate(), 40)
     return proc.returncode or 0, out.decode()
@@ -72,8 +72,8 @@ async def test_demo_without_part_releases_at_once(sim: SimServer) -> None:
 def test_plc_demo_without_a_gripper_says_so() -> None:
     import subprocess
 
-    out = subprocess.run([WSG, "plc-demo", "--port", "1", "--timeout", "2"], capture_output=True, text=True,
-                         timeout=30)
+    out = subprocess.run([WSG, "plc-demo", "--url", "modbus-tcp://127.0.0.1:1", "--timeout", "2"],
+                         capture_output=True, text=True, timeout=30)
     assert out.returncode != 0 and "cannot connect" in out.stderr
 
 
@@ -107,6 +107,20 @@ async def test_a_move_to_where_the_fingers_are_returns_at_once(sim: SimServer) -
         img = await g.move(30.0, 400.0, timeout=5.0)
         assert loop.time() - t0 < 2.0
         assert img.status == Status.E_SUCCESS and img.width_mm == pytest.approx(30.0)
+
+
+async def test_homing_when_already_at_the_end_stop_returns(sim: SimServer) -> None:
+    """002 §4.4 HOMING twice: the second homing starts at the end stop and still runs (000 §3.2.1), so
+    the command sees it start and end instead of timing out after 10 s."""
+    g = await AsyncFieldbusGripper.open("127.0.0.1", sim.modbus_port or 0)
+    async with g:
+        await g.homing()
+        loop = asyncio.get_running_loop()
+        t0 = loop.time()
+        img = await g.homing(timeout=5.0)
+        assert loop.time() - t0 < 3.0
+        assert img.status == Status.E_SUCCESS and img.sysstate & SystemFlag.SF_REFERENCED
+        assert img.width_mm == pytest.approx(110.0)
 
 
 async def test_grip_without_part_raises_with_the_image(sim: SimServer) -> None:

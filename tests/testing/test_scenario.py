@@ -107,7 +107,7 @@ def test_wsg_sim_scenario_runs_in_real_time(tmp_path: Path, sim_proc: type[SimPr
 def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     """The docs' example: the SCL demo cycle (002 Appendix D) against `wsg sim --scenario lost-part.toml`."""
     sim = sim_proc("--scenario", str(DOCS / "lost-part.toml"), modbus=True)
-    r = wsg("plc-demo", "--port", str(sim.modbus_port), "--cycles", "3", timeout=90)
+    r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "3", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
@@ -126,7 +126,8 @@ def test_plc_demo_recovers_from_the_scenario_fast_stop(sim_proc: type[SimProc]) 
     """The docs' example: a 2 s power fault at t = 10 s (FAST STOP, 000 App. B SF_POWER_FAULT) in
     whatever step it catches the SCL cycle (002 App. D); it acknowledges, homes and finishes."""
     sim = sim_proc("--part", "22", "--scenario", str(DOCS / "fast-stop-recovery.toml"), modbus=True)
-    r = wsg("plc-demo", "--port", str(sim.modbus_port), "--cycles", "6", "--timeout", "50", timeout=90)
+    r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "6", "--timeout", "50",
+            timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
     sim.wait_for("power")  # the fault did strike during the run (t = 10 s; the demo takes longer)
     done = r.stdout.strip().splitlines()[-1]

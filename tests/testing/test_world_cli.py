@@ -52,7 +52,7 @@ def test_wsg_world_refuses_bad_input_and_says_why(sim_proc: type[SimProc]) -> No
 def test_sim_part_at_start_makes_the_plc_demo_hold_parts(sim_proc: type[SimProc]) -> None:
     """The issue's reproduction: `wsg plc-demo --cycles 3` against `wsg sim --modbus-port N --part 20`."""
     sim = sim_proc("--part", "20", modbus=True)
-    r = wsg("plc-demo", "--port", str(sim.modbus_port), "--cycles", "3", timeout=90)
+    r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "3", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "3 part(s) held, 0 without part" in r.stdout
 

@@ -18,12 +18,14 @@ from .axis import MOTION_TIMEOUT_S, POS_EPS, SF_AXIS_STOPPED, SF_BLOCKED, Motion
 from .core import DeviceCore
 from .fingers import POWER_UP_S
 from .log import LogLevel
-from .motion import plan_move
+from .motion import Phase, Trajectory, plan_move
 from .session import Session
 from .streams import AUTO_UPDATE_IDS
 
 S = Status
 GS = GripperState
+
+HOMING_STALL_S = 0.2  # s: the shortest homing, pushing into the end stop until the stall is seen
 
 Handler = Callable[[DeviceCore, Session, bytes, float], Frame]
 
@@ -94,8 +96,12 @@ def homing(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     x = axis.traj.position(now)
     axis.referenced = False
     axis.gstate = GS.POSITIONING
-    g.start_motion(now, Motion("homing", s, 0x20, target, g.profile.homing_speed, d),
-                   plan_move(now, x, target, g.profile.homing_speed, axis.acceleration))
+    traj = plan_move(now, x, target, g.profile.homing_speed, axis.acceleration)
+    if traj.end_time - now < HOMING_STALL_S:
+        # Already at (or next to) the end stop: the drive still pushes into it until it detects the
+        # stall (000 §3.2.1), so homing is never instant and a PLC polling the image sees it run.
+        traj = Trajectory([*traj.phases, Phase(traj.end_time, target, 0.0, 0.0, now + HOMING_STALL_S)], now, x)
+    g.start_motion(now, Motion("homing", s, 0x20, target, g.profile.homing_speed, d), traj)
     g.log.add(now, LogLevel.INFO, f"homing in {'positive' if d > 0 else 'negative'} direction")
     return Frame.reply(0x20, S.E_CMD_PENDING)
 
