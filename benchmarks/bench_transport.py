@@ -16,8 +16,8 @@ asyncio and, when installed, on uvloop.
 
 CAN (``--can``): round trips of the same 41h request over python-can's ``virtual`` bus (the inferred
 mapping of docs/sim.md: 8-byte CAN frames, requests on 01h, replies on 02h), the sim in a thread of
-this process (a virtual bus does not cross processes), beside TCP and UDP to the same sim in the
-same conditions: a raw python-can client, ``Gripper`` and ``AsyncGripper``.
+this process (a virtual bus does not cross processes), beside TCP, UDP and serial (a pty) to the same
+sim in the same conditions: a raw python-can client, ``Gripper`` and ``AsyncGripper``.
 
     .venv/bin/python benchmarks/bench_transport.py [--parts 1,2,3] [--counts 1,50,200] [--seconds 3]
         [--loops asyncio,uvloop] [--search-seconds 2] [--can [--can-round-trips 3000]]
@@ -361,11 +361,11 @@ def bench_can(n: int) -> None:
     channel = f"bench-{uuid.uuid4().hex[:8]}"
     loop = asyncio.new_event_loop()
     threading.Thread(target=loop.run_forever, daemon=True).start()
-    sim = SimServer(SimOptions(tcp_port=0, udp_port=0, udp_reply_port=None, serial=None, web_port=None,
+    sim = SimServer(SimOptions(tcp_port=0, udp_port=0, udp_reply_port=None, serial="pty", web_port=None,
                                can_channel=channel))
     asyncio.run_coroutine_threadsafe(sim.start(), loop).result(10)
     urls = {"CAN": f"can://{channel}?interface=virtual", "TCP": str(sim.grippers[0].tcp_url),
-            "UDP": f"udp://127.0.0.1:{sim.udp_port}?reply_port=0"}
+            "UDP": f"udp://127.0.0.1:{sim.udp_port}?reply_port=0", "serial": str(sim.grippers[0].serial_url)}
     try:
         bus = can.Bus(interface="virtual", channel=channel,
                       can_filters=[{"can_id": 0x02, "can_mask": 0x7FF, "extended": False}])
@@ -386,7 +386,7 @@ def bench_can(n: int) -> None:
         bus.shutdown()
         for name, url in urls.items():
             with Gripper(url, timeout=5) as g:
-                print(f"  Gripper.gripper_state(), {name}      {_lat_stats(_timed_calls(g.gripper_state, n))}")
+                print(f"  Gripper.gripper_state(), {name:<6}      {_lat_stats(_timed_calls(g.gripper_state, n))}")
 
         async def aio(url: str) -> list[int]:
             async with AsyncGripper(url, timeout=5) as g:
@@ -401,7 +401,7 @@ def bench_can(n: int) -> None:
                 return lat
 
         for name, url in urls.items():
-            print(f"  AsyncGripper.gripper_state(), {name} {_lat_stats(asyncio.run(aio(url)))}")
+            print(f"  AsyncGripper.gripper_state(), {name:<6} {_lat_stats(asyncio.run(aio(url)))}")
     finally:
         asyncio.run_coroutine_threadsafe(sim.close(save=False), loop).result(10)
         loop.call_soon_threadsafe(loop.stop)
@@ -430,7 +430,7 @@ def main() -> None:
     parts = args.parts.split(",")
     if args.can:
         print(f"CAN round trips of a 41h request, {args.can_round_trips} each, sim in this process "
-              "(python-can virtual bus; TCP/UDP to the same sim for comparison)")
+              "(python-can virtual bus; TCP/UDP/serial pty to the same sim for comparison)")
         bench_can(args.can_round_trips)
         parts = []
     if "1" in parts:

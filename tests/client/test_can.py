@@ -227,6 +227,109 @@ def _rate(g: Gripper, n: int = 30) -> float:
     return n / (time.perf_counter() - t0)
 
 
+# -- AsyncGripper: the same faults (issue 17) ---------------------------------------------------------
+
+
+def test_async_a_wrong_identifier_times_out_and_the_call_says_so(sim_factory: Callable[..., SimThread]) -> None:
+    """No reply on the reply identifier: the call ends with TimeoutError after ``timeout``, not later."""
+    ch = channel()
+    sim_factory(tcp_port=None, udp_port=None, can_channel=ch, can_rx_id=0x300, can_tx_id=0x301)
+
+    async def main() -> None:
+        async with AsyncGripper(f"can://{ch}?interface=virtual", timeout=0.3) as g:
+            t0 = time.monotonic()
+            with pytest.raises(TimeoutError):
+                await g.width()           # the default identifiers reach nobody
+            assert time.monotonic() - t0 < 5     # bounded (0.3 s; generous for a loaded box)
+        async with AsyncGripper(f"can://{ch}?interface=virtual&request_id=0x300&reply_id=0x301", timeout=2) as g:
+            assert await g.loop(b"ids") == b"ids"
+
+    asyncio.run(main())
+
+
+def test_async_a_lost_request_fragment_fails_that_call_only(can_sim: tuple[SimThread, str]) -> None:
+    """000 §1.2.1: the device cannot complete (or checks the CRC of) a frame missing a fragment; the
+    async call times out and the next calls on the same connection are answered."""
+    _, url = can_sim
+
+    async def main() -> None:
+        async with AsyncGripper(url, timeout=0.5) as g:
+            assert await g.loop(b"before") == b"before"
+            drop = _Dropper(g._transport.bus, 2)  # type: ignore[union-attr]
+            with pytest.raises(WsgError):
+                await g.loop(bytes(40))       # 46-byte request, its second CAN frame lost
+            assert drop.dropped == 1
+            info = await g.info()             # completes the truncated frame (CRC error), then resyncs
+            assert info.serial_number >= 0
+            assert await g.loop(b"after") == b"after"
+
+    asyncio.run(main())
+
+
+def test_async_a_lost_reply_fragment_fails_that_call_only(can_sim: tuple[SimThread, str]) -> None:
+    """A reply missing a fragment fails its CRC or never completes: that call raises, the next works."""
+    st, url = can_sim
+
+    async def main() -> None:
+        async with AsyncGripper(url, timeout=0.5) as g:
+            assert await g.loop(b"before") == b"before"
+            drop = _Dropper(st.g.can._bus, 2)
+            with pytest.raises((BadChecksumReply, TimeoutError)):
+                await g.loop(bytes(40))       # 50-byte reply, its second CAN frame lost
+            assert drop.dropped == 1
+            assert await g.loop(b"after") == b"after"
+            assert await g.width() >= 0
+
+    asyncio.run(main())
+
+
+def test_async_a_bus_flooded_with_foreign_identifiers_is_ignored(can_sim: tuple[SimThread, str]) -> None:
+    """Foreign identifiers, remote frames and extended frames on a busy bus never reach the parser."""
+    _, url = can_sim
+    ch = url.split("://")[1].split("?")[0]
+    flooder = can.Bus(interface="virtual", channel=ch)
+    stop = threading.Event()
+    sent = [0]
+
+    def flood() -> None:
+        """~4,000 frames/s, as a saturated 500 kbit/s bus (see the sync test above)."""
+        i = 0
+        next_burst = time.monotonic()
+        while not stop.is_set():
+            for _ in range(13):
+                i += 1
+                flooder.send(can.Message(arbitration_id=0x100 + i % 0x600, data=b"\xaa\xaa\xaa" + bytes(5),
+                                         is_extended_id=False))
+                flooder.send(can.Message(arbitration_id=0x02, is_remote_frame=True, is_extended_id=False))
+                flooder.send(can.Message(arbitration_id=0x02, data=b"\xaa\xaa\xaa\x50\x00\x00",
+                                         is_extended_id=True))
+                sent[0] += 3
+            next_burst += 0.01
+            time.sleep(max(0.0, next_burst - time.monotonic()))
+
+    async def main() -> None:
+        async with AsyncGripper(url, timeout=2) as g:
+            t = threading.Thread(target=flood, daemon=True)
+            t.start()
+            try:
+                await asyncio.sleep(0.2)
+                for _ in range(50):
+                    assert await g.loop(b"flood") == b"flood"
+                await g.home()
+                assert await g.gripper_state() in (GripperState.IDLE, GripperState.POSITIONING)
+            finally:
+                stop.set()
+                await asyncio.get_running_loop().run_in_executor(None, t.join, 5)
+                flooder.shutdown()
+            assert g._parser.buffered == 0      # nothing foreign reached the reassembly
+            transport: Any = g._transport
+            assert transport.foreign > 0        # the remote frames on the reply identifier: dropped per frame
+            assert await g.loop(b"still") == b"still"
+
+    asyncio.run(main())
+    assert sent[0] > 300
+
+
 # -- across processes on vcan ------------------------------------------------------------------------
 
 

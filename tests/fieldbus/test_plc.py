@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from pywsg.cli.plc import run_demo
+from pywsg.cli.plc import DemoResult, run_demo
 from pywsg.fieldbus.plc import AsyncFieldbusGripper, FieldbusError, FieldbusGripper
 from pywsg.protocol import CATALOG, Command, Frame, GripperState, Status, SystemFlag
 from pywsg.server import SimServer
@@ -60,6 +60,41 @@ async def test_plc_demo_recovers_from_an_injected_fast_stop(sim: SimServer) -> N
     assert "done: 3 cycle(s)" in out and "1 error recovery(ies)" in out
     snap = sim.grippers[0].gripper.snapshot()
     assert not snap.fast_stop and snap.referenced
+
+
+async def _fast_stop_while_gripping(sim: SimServer, recover: bool, timeout: float) -> tuple[DemoResult, list[str]]:
+    """run_demo with a FAST STOP (23h, another interface) raised the moment the cycle enters step 7
+    (before it can see HOLDING and start its hold timer): deterministic, whatever the scan timing."""
+    g = sim.grippers[0].gripper
+    g.faults.place_part(22.0)
+    lines: list[str] = []
+
+    def echo(text: str) -> None:
+        lines.append(text)
+        if "step  6 ->  7" in text and not g.snapshot().fast_stop and not any("->  7" in t for t in lines[:-1]):
+            g.raise_fast_stop("test: 23h while gripping")
+
+    result = await run_demo("127.0.0.1", sim.modbus_port or 0, 1, echo=echo, timeout=timeout,
+                            recover_fast_stop=recover)
+    return result, lines
+
+
+async def test_demo_runs_the_listing_exactly_and_says_why_it_is_stuck(sim: SimServer) -> None:
+    """002 App. D + §4.6 (default, no --recover-fast-stop): after a FAST STOP during the grip the
+    listing waits in step 7 for ever; the demo ends at its timeout with a one-line reason."""
+    result, lines = await _fast_stop_while_gripping(sim, recover=False, timeout=4)
+    assert not result.completed and result.errors == 0
+    stuck = [line for line in lines if line.startswith("stuck in step 7")]
+    assert len(stuck) == 1 and "--recover-fast-stop" in stuck[0], lines[-5:]
+    assert "timed out after 4 s" in lines[-1]
+
+
+async def test_demo_with_recover_fast_stop_acknowledges_and_finishes(sim: SimServer) -> None:
+    """--recover-fast-stop: the same FAST STOP goes to the listing's error step −1 (STOP/ACK), homing, grip."""
+    result, lines = await _fast_stop_while_gripping(sim, recover=True, timeout=20)
+    assert result.completed and result.errors >= 1 and result.holds >= 1, lines[-8:]
+    assert any("step  7 -> -1" in line for line in lines)
+    assert not any(line.startswith("stuck") for line in lines)
 
 
 async def test_demo_without_part_releases_at_once(sim: SimServer) -> None:

@@ -1,11 +1,11 @@
 """The soft PLC (002 Appendix D SCL listing) after a FAST STOP, deterministic on the manual clock.
 
 A FAST STOP sets the gripper state to IDLE, not ERROR (002 §4.6, 003 §5.6), and the listing leaves
-its steps only on ``STW1.ERROR``. Taken literally it waits for ever when the FAST STOP strikes in a
-step that waits for GRASPING/HOLDING (steps 6 and 7) — ``wsg plc-demo`` against
-``docs/scenarios/fast-stop-recovery.toml`` sat in step 6 until its timeout. The port treats
-``SYSSTATE.FAST_STOP`` like ERROR, so it goes to the listing's error step −1 (STOP/ACK acknowledges,
-002 §4.5), homes and grips again (docs/fidelity.md, "The SCL listing after a FAST STOP").
+its steps only on ``STW1.ERROR``. Taken literally (the default) it waits for ever when the FAST STOP
+strikes in a step that waits for GRASPING/HOLDING (step 7 while GRIPPING) and says why. With
+``recover_fast_stop`` (``wsg plc-demo --recover-fast-stop``) the port treats ``SYSSTATE.FAST_STOP``
+like ERROR, so it goes to the listing's error step −1 (STOP/ACK acknowledges, 002 §4.5), homes and
+grips again (docs/fidelity.md, "The SCL listing after a FAST STOP").
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ SCAN = 0.002  # s, as `wsg plc-demo`
 class PlcRig(Rig):
     """Virtual gripper with a 22 mm part, the fieldbus controller and the soft PLC, on one manual clock."""
 
-    def __init__(self) -> None:
+    def __init__(self, recover: bool = True) -> None:
         super().__init__()
         self.g.faults.place_part(22.0)
         self.log: list[str] = []
-        self.cyc = GrippingCycle(log=self.log.append)
+        self.cyc = GrippingCycle(log=self.log.append, recover_fast_stop=recover)
         self.visited: list[int] = []
 
     def advance(self, dt: float) -> None:
@@ -108,3 +108,34 @@ def test_a_lasting_fault_is_logged_once_not_per_scan() -> None:
     during = rig.log[before:]
     assert len(during) < 12, during
     assert any("repeated" in line for line in during)
+
+
+def test_the_listing_exactly_waits_for_ever_after_a_fast_stop_while_gripping() -> None:
+    """002 App. D taken literally (the default): step 7 starts its hold timer only on HOLDING and leaves
+    only on ERROR / NO_PART / PART_LOST; a FAST STOP while GRIPPING shows IDLE (002 §4.6), so it stays
+    in step 7. ``fast_stop_hint`` says so; it is None while the cycle runs normally."""
+    rig = PlcRig(recover=False)
+    rig.scan_until(lambda: rig.cyc.holds >= 1)
+    assert rig.cyc.fast_stop_hint(rig.ctl.input_image()) is None
+    rig.scan_until(lambda: rig.cyc.state == 7 and rig.gstate() == GS.GRIPPING)
+    _faststop_23h(rig)
+    end = rig.clock.now + 5.0
+    rig.scan_until(lambda: rig.clock.now >= end)             # 2,500 scans
+    assert rig.cyc.state == 7 and rig.gstate() == GS.IDLE and rig.g.snapshot().fast_stop
+    assert rig.cyc.error_count == 0 and rig.cyc.holds == 1
+    hint = rig.cyc.fast_stop_hint(rig.ctl.input_image())
+    assert hint is not None and "step 7" in hint and "--recover-fast-stop" in hint and "002 §4.6" in hint
+
+
+def test_the_listing_exactly_leaves_through_a_refused_command_where_it_can() -> None:
+    """Without the option a FAST STOP while the fingers pre-position (step 5 after POSITIONING was seen)
+    is left through the port's refused-command check: GRIP is refused (E_ACCESS_DENIED), step 6 goes to
+    the listing's error step −1, which acknowledges; the cycle grips again."""
+    rig = PlcRig(recover=False)
+    rig.scan_until(lambda: rig.cyc.holds >= 1)
+    rig.scan_until(lambda: rig.cyc.state == 4 and rig.gstate() == GS.POSITIONING)
+    rig.scan()                                              # step 4 sees POSITIONING: on to step 5
+    rig.visited.clear()
+    _faststop_23h(rig)
+    rig.scan_until(lambda: rig.cyc.holds > 1)
+    assert -1 in rig.visited and rig.cyc.error_count == 1

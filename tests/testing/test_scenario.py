@@ -127,7 +127,7 @@ def test_plc_demo_recovers_from_the_scenario_fast_stop(sim_proc: type[SimProc]) 
     whatever step it catches the SCL cycle (002 App. D); it acknowledges, homes and finishes."""
     sim = sim_proc("--part", "22", "--scenario", str(DOCS / "fast-stop-recovery.toml"), modbus=True)
     r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "6", "--timeout", "50",
-            timeout=90)
+            "--recover-fast-stop", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
     sim.wait_for("power")  # the fault did strike during the run (t = 10 s; the demo takes longer)
     done = r.stdout.strip().splitlines()[-1]

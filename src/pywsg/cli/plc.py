@@ -40,14 +40,16 @@ class DemoResult:
 
 async def run_demo(host: str, port: int, cycles: int = 3, *, scan: float = 0.002, timeout: float = 60.0,
                    fast_stop_cycle: int | None = None, model: str = "wsg50",
-                   echo: Callable[[str], None] = print) -> DemoResult:
+                   echo: Callable[[str], None] = print, recover_fast_stop: bool = False) -> DemoResult:
     """Run the gripping cycle until ``cycles`` cycles are done (or ``timeout`` s pass).
 
     ``fast_stop_cycle``: in that cycle (1-based) raise FASTSTOP for one scan while the fingers move,
-    to show the listing's error path (STOP/ACK, homing, restart).
+    to show the listing's error path (STOP/ACK, homing, restart). ``recover_fast_stop``: see
+    :class:`GrippingCycle` (off: the listing exactly).
     """
     plc = await AsyncFieldbusGripper.open(host, port, model=model)
-    cyc = GrippingCycle(log=echo)
+    cyc = GrippingCycle(log=echo, recover_fast_stop=recover_fast_stop)
+    inputs = None
     injected = 0
     deadline = time.monotonic() + timeout
     done_cycles = -1
@@ -73,6 +75,9 @@ async def run_demo(host: str, port: int, cycles: int = 3, *, scan: float = 0.002
     finally:
         await plc.close()
     completed = cyc.cycles >= cycles
+    hint = None if completed or inputs is None else cyc.fast_stop_hint(inputs)
+    if hint:
+        echo(f"stuck in {hint}")
     echo(f"done: {cyc.cycles} cycle(s), {cyc.holds} part(s) held, {cyc.no_part} without part, "
          f"{cyc.error_count} error recovery(ies)" + ("" if completed else f" — timed out after {timeout:g} s"))
     return DemoResult(cyc.cycles, cyc.holds, cyc.no_part, cyc.error_count, injected, completed)
@@ -127,6 +132,9 @@ def parse_modbus_url(url: str) -> tuple[str, int]:
               metavar="SECONDS", help="Give up after this many seconds (exit 1).")
 @click.option("--fast-stop-cycle", type=click.IntRange(1), default=None, metavar="N",
               help="Fault: raise FASTSTOP while the fingers move in cycle N (shows the error path).")
+@click.option("--recover-fast-stop", is_flag=True,
+              help="Not in the listing: go to its error step (STOP/ACK, homing) on SYSSTATE.FAST_STOP as on ERROR; "
+              "without it a FAST STOP during a grip leaves the cycle waiting until --timeout (002 §4.6: IDLE).")
 @click.option("--sim", "local_sim", is_flag=True,
               help="Run against an in-process virtual gripper instead of --url.")
 @click.option("--part-width", default=22.0, show_default=True, type=click.FloatRange(0, min_open=True),
@@ -137,8 +145,8 @@ def parse_modbus_url(url: str) -> tuple[str, int]:
               help='One JSON object per line: {"event": "step", "text": ...}, then {"event": "done", ...}.')
 @click.pass_context
 def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | None, cycles: int, model: str,
-             scan: float, timeout: float, fast_stop_cycle: int | None, local_sim: bool, part_width: float,
-             no_part: bool, as_json: bool) -> None:
+             scan: float, timeout: float, fast_stop_cycle: int | None, recover_fast_stop: bool, local_sim: bool,
+             part_width: float, no_part: bool, as_json: bool) -> None:
     """Run the fieldbus manual's gripping-cycle demo (002 Appendix D, SCL) over Modbus/TCP.
 
     Homing, pre-position to 30 mm, grip at 22 mm with 50 N, hold 1 s, release to 30 mm, back to
@@ -174,9 +182,11 @@ def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | 
                 else:
                     click.echo(f"in-process virtual {model} with Modbus/TCP on 127.0.0.1:{sim_port}")
                 return await run_demo("127.0.0.1", sim_port, cycles, scan=scan / 1000, timeout=timeout,
-                                      fast_stop_cycle=fast_stop_cycle, model=model, echo=echo)
+                                      fast_stop_cycle=fast_stop_cycle, model=model, echo=echo,
+                                      recover_fast_stop=recover_fast_stop)
         return await run_demo(target_host, target_port, cycles, scan=scan / 1000, timeout=timeout,
-                              fast_stop_cycle=fast_stop_cycle, model=model, echo=echo)
+                              fast_stop_cycle=fast_stop_cycle, model=model, echo=echo,
+                              recover_fast_stop=recover_fast_stop)
 
     try:
         result = asyncio.run(main())

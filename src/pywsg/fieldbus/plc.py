@@ -380,18 +380,21 @@ class WsgReceive:
 class GrippingCycle:
     """The SCL ``GrippingCycle`` function block. Call :meth:`step` once per PLC scan.
 
-    Ported faithfully, with three robustness changes (docs/fieldbus.md, docs/fidelity.md):
+    Ported faithfully, with two robustness changes (docs/fieldbus.md, docs/fidelity.md):
 
     - a step waiting for a *running* state (POSITIONING, GRIPPING, RELEASING) also accepts the
       state that follows it, because a fast virtual gripper can finish a short motion between two
       scans;
-    - such a step treats a refused command (IDLE with an error STATUS CODE) like ERROR;
-    - every step that checks ``STW1.ERROR`` (1..10 and the default) goes to step −1 on
-      ``SYSSTATE.FAST_STOP`` too, doing nothing else in that scan. A FAST STOP sets the gripper
-      state to IDLE, not ERROR (002 §4.6), so the listing taken literally waits for ever in a step
-      that waits for a running state or for HOLDING; its error step −1 (STOP/ACK: "Acknowledge a
-      FAST STOP") is the recovery the listing provides. Steps −1 and 0 are the listing's: while a
-      fault refuses the acknowledge, −1 → 0 → 1 → −1 repeats, each time with a new STOP/ACK edge.
+    - such a step treats a refused command (IDLE with an error STATUS CODE) like ERROR.
+
+    ``recover_fast_stop`` (off by default, as the listing): every step that checks ``STW1.ERROR``
+    (1..10 and the default) goes to step −1 on ``SYSSTATE.FAST_STOP`` too, doing nothing else in that
+    scan. A FAST STOP sets the gripper state to IDLE, not ERROR (002 §4.6), so the listing taken
+    literally waits for ever in a step that waits for a running state or for HOLDING (e.g. step 7
+    when the FAST STOP strikes while GRIPPING); its error step −1 (STOP/ACK: "Acknowledge a FAST
+    STOP") is the recovery the listing provides. Steps −1 and 0 are the listing's: while a fault
+    refuses the acknowledge, −1 → 0 → 1 → −1 repeats, each time with a new STOP/ACK edge.
+    :meth:`fast_stop_hint` says why a listing-exact cycle stopped making progress.
 
     ``state`` starts at 0 (homing); the listing's initial -2 falls into the default branch, which
     restarts at step 3 without homing.
@@ -399,6 +402,7 @@ class GrippingCycle:
 
     config: CycleConfig = field(default_factory=CycleConfig)
     state: int = 0
+    recover_fast_stop: bool = False
     send: OutputImage = field(default_factory=OutputImage)
     holding_active: bool = False
     timer_due: float | None = None
@@ -441,8 +445,8 @@ class GrippingCycle:
         # steps waiting for a running state treat that like ERROR instead of waiting forever.
         refused = stw1.IDLE and rcv.ERROR_CODE not in (Status.E_SUCCESS, Status.E_CMD_PENDING)
 
-        if sysstate.FAST_STOP and state > 0:
-            # Port addition: a FAST STOP shows IDLE, not ERROR (002 §4.6), but is an error to
+        if self.recover_fast_stop and sysstate.FAST_STOP and state > 0:
+            # Option, not the listing: a FAST STOP shows IDLE, not ERROR (002 §4.6), but is an error to
             # acknowledge (App. B D12), which step -1 does. Like the listing's ERROR check, it replaces
             # the step (with ERROR none of a step's IDLE / running-state conditions can hold either).
             self.state = -1
@@ -546,6 +550,16 @@ class GrippingCycle:
             self._say(f"step {state:>2} -> {self.state:>2}: {STEP_TEXT.get(self.state, 'default branch')}"
                       f"  [{_gstate_name(stw1)}, {_status_name(rcv.ERROR_CODE)}]")
         return self.send
+
+
+    def fast_stop_hint(self, receive: InputImage | WsgReceive) -> str | None:
+        """Why the cycle may wait for ever: FAST STOP set while it runs the listing exactly, else None."""
+        rcv = receive if isinstance(receive, WsgReceive) else WsgReceive.from_bytes(receive.pack())
+        if self.recover_fast_stop or not rcv.SYSSTATE.FAST_STOP:
+            return None
+        return (f"step {self.state} ({STEP_TEXT.get(self.state, 'default branch')}) with FAST STOP set and gripper "
+                f"state {_gstate_name(rcv.STW1)}: the listing (002 App. D) leaves a step for its error step only "
+                "on ERROR, and a FAST STOP sets IDLE (002 §4.6); --recover-fast-stop treats FAST STOP like ERROR")
 
 
 def _status_name(code: int) -> str:
