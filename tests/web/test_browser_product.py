@@ -313,23 +313,37 @@ CONTRAST_JS = """
 }
 """
 
+# A control's hit area: the element, or for a check box the label around it (a click there toggles
+# it, see test_check_boxes_toggle_from_the_edge_of_their_label). Disabled boxes are displays (the
+# Fieldbus Monitor's bits), not targets. Height and width must both be at least 40 px.
 TARGETS_JS = """
 () => Array.from(document.querySelectorAll(
-    'main button, main select, main input:not([type=checkbox]), #gripper-box button, nav button, nav > ul > li > a'))
+    'main button, main select, main input:not([disabled]), #gripper-box button, nav button, nav > ul > li > a'))
   .filter(e => e.offsetParent)
-  .map(e => [e.outerHTML.slice(0, 60), e.getBoundingClientRect().height])
+  .map(e => {
+    const target = (e.type === 'checkbox' && e.closest('label')) || e;
+    const r = target.getBoundingClientRect();
+    return [e.outerHTML.slice(0, 60), Math.min(r.height, r.width)];
+  })
   .filter(x => x[1] < 40)
+"""
+
+CHECKBOXES_JS = """
+() => Array.from(document.querySelectorAll('main input[type=checkbox]:not([disabled])'))
+  .filter(e => e.offsetParent).map(e => e.id)
 """
 
 
 @pytest.mark.parametrize("viewport", ["phone", "laptop"])
 def test_contrast_and_touch_targets(sim: LiveSim, browser: Any, viewport: str) -> None:
-    """Issue 15 item 14: text at WCAG AA contrast (4.5:1, large 3:1), controls at least 40 px tall."""
+    """Issue 15 item 14: text at WCAG AA contrast (4.5:1, large 3:1), controls (check boxes too) ≥ 40 × 40 px."""
     errors: list[str] = []
     page = _page(browser, VIEWPORTS[viewport], errors)
     for path in PAGES:
         page.goto(sim.url + path)
         live(page)
+        if path.startswith("/settings"):
+            page.wait_for_function("document.getElementById('settings-form').dataset.loaded === '1'")
         assert page.evaluate(CONTRAST_JS) == [], path
         assert page.evaluate(TARGETS_JS) == [], path
         assert page.locator("[aria-live]").count() >= 1
@@ -339,6 +353,36 @@ def test_contrast_and_touch_targets(sim: LiveSim, browser: Any, viewport: str) -
     label = page.get_attribute("#plot-width", "aria-label") or ""
     assert label.startswith("Width over the last 30 s"), label
     page.context.close()
+    assert not errors
+
+
+@pytest.mark.parametrize("viewport", ["phone", "laptop"])
+def test_check_boxes_toggle_from_the_edge_of_their_label(sim: LiveSim, browser: Any, viewport: str) -> None:
+    """Issue 15 item 14: a check box's 40 px hit area is real: a tap 2 px inside its label's corner toggles it."""
+    errors: list[str] = []
+    page = _page(browser, VIEWPORTS[viewport], errors)
+    seen: set[str] = set()
+    for path in PAGES:
+        page.goto(sim.url + path)
+        live(page)
+        if path.startswith("/settings"):
+            page.wait_for_function("document.getElementById('settings-form').dataset.loaded === '1'")
+        for box in page.evaluate(CHECKBOXES_JS):
+            seen.add(box)
+            page.locator(f"#{box}").scroll_into_view_if_needed()
+            before = page.is_checked(f"#{box}")
+            for corner in ("top-left", "bottom-right"):
+                r = page.evaluate(f"JSON.parse(JSON.stringify(document.getElementById('{box}')"
+                                  ".closest('label').getBoundingClientRect()))")
+                assert min(r["width"], r["height"]) >= 40, (path, box, r)
+                x, y = (r["x"] + 2, r["y"] + 2) if corner == "top-left" else (r["right"] - 2, r["bottom"] - 2)
+                page.mouse.click(x, y)
+                assert page.is_checked(f"#{box}") != before, (path, box, corner)
+                page.mouse.click(x, y)
+                assert page.is_checked(f"#{box}") == before, (path, box, corner)
+    page.context.close()
+    # the Command Interface page's protocol options and DHCP, the System Log's "follow"
+    assert {"set-crc_check", "if-dhcp", "log-follow"} <= seen, seen
     assert not errors
 
 
