@@ -454,13 +454,19 @@ def test_check_boxes_toggle_from_the_edge_of_their_label(sim: LiveSim, browser: 
             page.wait_for_function("document.getElementById('settings-form').dataset.loaded === '1'")
         for box in page.evaluate(CHECKBOXES_JS):
             seen.add(box)
-            page.locator(f"#{box}").scroll_into_view_if_needed()
             before = page.is_checked(f"#{box}")
             for corner in ("top-left", "bottom-right"):
-                r = page.evaluate(f"JSON.parse(JSON.stringify(document.getElementById('{box}')"
-                                  ".closest('label').getBoundingClientRect()))")
+                # the whole label in view (a phone scrolls a wide table sideways), then its rectangle
+                r = page.evaluate(f"""(() => {{
+                    const label = document.getElementById('{box}').closest('label');
+                    label.scrollIntoView({{block: 'center', inline: 'center'}});
+                    return JSON.parse(JSON.stringify(label.getBoundingClientRect())); }})()""")
                 assert min(r["width"], r["height"]) >= 40, (path, box, r)
                 x, y = (r["x"] + 2, r["y"] + 2) if corner == "top-left" else (r["right"] - 2, r["bottom"] - 2)
+                hit = page.evaluate(f"(document.elementFromPoint({x}, {y}) || {{outerHTML: 'nothing'}})"
+                                    ".outerHTML.slice(0, 100)")
+                assert hit.startswith('<label class="check"') or hit.startswith(f'<input type="checkbox" id="{box}"') \
+                    or f'id="{box}"' in hit, (path, box, corner, hit, r)
                 page.mouse.click(x, y)
                 assert page.is_checked(f"#{box}") != before, (path, box, corner)
                 page.mouse.click(x, y)
