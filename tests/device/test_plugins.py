@@ -103,3 +103,38 @@ def test_custom_plugin_and_if_of_mirror(rig: Rig) -> None:
     rig.g.load_plugin("if_of_mirror")
     rig.g.set_script_if(0x1234)
     assert rig.g.snapshot().script_of == 0x1234
+
+
+class _Crashing(FirmwarePlugin):
+    """A script with a bug: C1h divides by zero, an IF change of 0xDEAD indexes past a list."""
+
+    name = "crashing"
+    commands = (0xC1, 0xC2)
+
+    def handle(self, gripper: VirtualGripper, session: object, command_id: int, payload: bytes,
+               now: float) -> Frame:
+        if command_id == 0xC1:
+            return Frame.reply(command_id, S.E_SUCCESS, bytes([1 // len(payload)]))
+        return Frame.reply(command_id, S.E_SUCCESS)
+
+    def on_if_changed(self, gripper: VirtualGripper, value: int) -> None:
+        if value == 0xDEAD:
+            [][0]
+
+
+def test_a_script_error_aborts_the_script_and_sets_script_failure(rig: Rig) -> None:
+    """000 App. B (D20 SF_SCRIPT_FAILURE): "An error occurred while executing a script and the script has been
+    aborted. The flag is reset whenever a script is started." """
+    rig.g.load_plugin(_Crashing())
+    assert rig.status(0xC1, b"x") == S.E_SUCCESS
+    assert rig.status(0xC1, b"") == S.E_CMD_FAILED  # the request that hit the error
+    flags = SystemFlag(rig.flags())
+    assert flags & SystemFlag.SF_SCRIPT_FAILURE and not flags & SystemFlag.SF_SCRIPT_RUNNING
+    assert rig.status(0xC2) == S.E_CMD_UNKNOWN  # aborted: its command IDs are gone
+    assert any(m.startswith("script crashing aborted: ZeroDivisionError") for m in rig.g.log.messages())
+    rig.g.load_plugin("if_of_mirror")  # starting a script resets the flag
+    assert not SystemFlag(rig.flags()) & SystemFlag.SF_SCRIPT_FAILURE
+    rig.g.load_plugin(_Crashing())
+    rig.g.set_script_if(0xDEAD)  # an error in the IF hook aborts only that script
+    assert SystemFlag(rig.flags()) & SystemFlag.SF_SCRIPT_FAILURE
+    assert list(rig.g.snapshot().plugins) == ["if_of_mirror"] and rig.g.snapshot().script_of == 0xDEAD

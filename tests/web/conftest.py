@@ -9,6 +9,8 @@ calls from a test go through ``sim.call`` so that the gripper is only touched by
 from __future__ import annotations
 
 import asyncio
+import hashlib
+import json
 import os
 import socket
 import struct
@@ -29,6 +31,7 @@ from pywsg.web.app import WebHandle, serve_web
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"
 DOC_IMAGES = Path(__file__).resolve().parents[2] / "docs" / "img"
+DOC_IMAGES_MANIFEST = DOC_IMAGES / "screenshots.json"
 CHROMIUM = os.environ.get("PYWSG_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
     "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
@@ -109,6 +112,14 @@ class LiveSim:
             self.loop.call_soon_threadsafe(self.loop.stop)
             self.thread.join(5)
             self.loop.close()
+
+
+def record_doc_image(name: str, version: str) -> None:
+    """Note in docs/img/screenshots.json that docs/img/``name`` shows pywsg ``version`` (and its SHA-256)."""
+    manifest = json.loads(DOC_IMAGES_MANIFEST.read_text()) if DOC_IMAGES_MANIFEST.exists() else {}
+    digest = hashlib.sha256((DOC_IMAGES / name).read_bytes()).hexdigest()
+    manifest[name] = {"pywsg": version, "sha256": digest}
+    DOC_IMAGES_MANIFEST.write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
 
 
 def client_for(sim: LiveSim) -> httpx.Client:

@@ -7,6 +7,7 @@ copied to docs/img/ for the README.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import socket
 import time
@@ -19,7 +20,7 @@ from pymodbus.client import ModbusTcpClient
 from pywsg.fieldbus.image import CmdFlag, OutputImage
 from pywsg.protocol import CATALOG, Command, Frame
 
-from .conftest import ARTIFACTS, DOC_IMAGES, LiveSim, client_for, home, read_status, wait_for
+from .conftest import ARTIFACTS, DOC_IMAGES, LiveSim, client_for, home, read_status, record_doc_image, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -32,12 +33,20 @@ PAGES = {
 
 
 def shot(page: Any, name: str, doc: str | None = None) -> None:
+    """Screenshot the whole page to test-artifacts/web/``name``.png; with PYWSG_UPDATE_DOC_IMAGES=1
+    also to docs/img/``doc``, recording the pywsg version the page's header shows in the manifest."""
     path = ARTIFACTS / f"{name}.png"
+    update_docs = doc is not None and bool(os.environ.get("PYWSG_UPDATE_DOC_IMAGES"))
+    if update_docs:
+        page.evaluate("window.scrollTo(0, 0)")  # the sticky Gripper box at the top, as a reader first sees it
     page.screenshot(path=str(path), full_page=True)
-    if doc is not None and os.environ.get("PYWSG_UPDATE_DOC_IMAGES"):
+    if doc is not None and update_docs:
         # refresh the README's screenshots only on request: a test run leaves the tree clean
         DOC_IMAGES.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, DOC_IMAGES / doc)
+        shown = re.search(r"pywsg (\S+)", page.inner_text("header"))
+        assert shown, "the header names no pywsg version"
+        record_doc_image(doc, shown.group(1))
 
 
 def live(page: Any) -> None:

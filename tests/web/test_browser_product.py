@@ -2,12 +2,14 @@
 
 A restart of the simulator with the page open, then Stop; the server gone (stale values, commands
 that fail with a message); the Move result race; every control clickable at 390×844, 360×740 and
-1366×768 (Playwright's actionability checks); keyboard-only navigation to every page and to Stop;
-the identity header; the Motion page's commands; contrast and touch-target sizes.
+1366×768 and 1920×1080 (Playwright's actionability checks); keyboard-only navigation to every page and to Stop;
+the identity header; the Motion page's commands (overdrive and tare through their forms); a script
+error shown as SF_SCRIPT_FAILURE; contrast and touch-target sizes.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import socket
 import struct
@@ -18,14 +20,17 @@ from typing import Any
 import httpx
 import pytest
 
-from pywsg.protocol import CATALOG, Command, Frame, SystemFlag
+from pywsg.device import FirmwarePlugin, Session
+from pywsg.device.fingers import FMF_ZERO_DRIFT_N
+from pywsg.device.plugins import ScriptHost
+from pywsg.protocol import CATALOG, Command, Frame, Status, SystemFlag
 
 from .conftest import LiveSim, client_for, home, read_status, submit_form, wait_for
 from .test_browser import PAGES, live, shot
 
 pytestmark = pytest.mark.browser
 
-VIEWPORTS = {"phone": (390, 844), "small-phone": (360, 740), "laptop": (1366, 768)}
+VIEWPORTS = {"phone": (390, 844), "small-phone": (360, 740), "laptop": (1366, 768), "wide": (1920, 1080)}
 
 
 @pytest.fixture
@@ -142,7 +147,8 @@ def _controls_not_clickable(page: Any) -> list[str]:
 
 @pytest.mark.parametrize("viewport", list(VIEWPORTS))
 def test_every_control_is_clickable_and_nothing_overflows(sim: LiveSim, browser: Any, viewport: str) -> None:
-    """Issue 15 item 1: a responsive layout 360..1920 px; at phone width no box covers a control."""
+    """Issue 15 item 1: a responsive layout 360..1920 px (360, 390, 1366 and 1920 wide): nothing wider than
+    the window, and at phone width no box covers a control."""
     errors: list[str] = []
     page = _page(browser, VIEWPORTS[viewport], errors)
     failures: dict[str, list[str]] = {}
@@ -158,6 +164,8 @@ def test_every_control_is_clickable_and_nothing_overflows(sim: LiveSim, browser:
         assert overflow <= 1, (path, overflow)
         if viewport == "phone":
             shot(page, "phone" + path.replace("/", "_"), "control-panel-phone.png" if path == "/" else None)
+        elif viewport == "wide" and path == "/":
+            shot(page, "wide-control-panel")
     page.context.close()
     assert not failures, failures
     assert not errors
@@ -279,6 +287,83 @@ def test_motion_page_soft_limits_statistics_and_jog(sim: LiveSim, page: Any) -> 
     api.close()
 
 
+def test_motion_page_overdrive_form_switches_the_device(sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 10: the 37h form (000 §3.3.8) turns overdrive on and off; the device and the flag list follow."""
+    assert not sim.snapshot().overdrive
+    page.goto(sim.url + "/settings/motion")
+    live(page)
+    page.select_option("#form-overdrive select[name=on]", "true")
+    page.click("#form-overdrive button[type=submit]")
+    page.wait_for_function("document.querySelector('#form-overdrive output').innerText === 'E_SUCCESS'")
+    assert sim.snapshot().overdrive and sim.snapshot().flags & SystemFlag.SF_OVERDRIVE_MODE
+    page.wait_for_selector("#flag-list li[data-flag=SF_OVERDRIVE_MODE].on")
+    page.evaluate("document.querySelector('#form-overdrive output').textContent = ''")
+    page.select_option("#form-overdrive select[name=on]", "false")
+    page.click("#form-overdrive button[type=submit]")
+    page.wait_for_function("document.querySelector('#form-overdrive output').innerText === 'E_SUCCESS'")
+    assert not sim.snapshot().overdrive and not sim.snapshot().flags & SystemFlag.SF_OVERDRIVE_MODE
+    page.wait_for_selector("#flag-list li[data-flag=SF_OVERDRIVE_MODE]:not(.on)")
+
+
+def test_motion_page_tare_form_zeroes_the_force_sensor(fresh_sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 10: the 38h form (000 §3.3.9): generic fingers answer E_NOT_AVAILABLE beside the form;
+    with force-measuring fingers (FMF) the device takes the sensor's zero offset as its tare."""
+    sim = fresh_sim
+    page.goto(sim.url + "/settings/motion")
+    live(page)
+    page.click("#form-tare button[type=submit]")
+    page.wait_for_function("document.querySelector('#form-tare output').innerText.startsWith('E_NOT_AVAILABLE')")
+    assert page.get_attribute("#form-tare output", "class") == "result bad"
+    settings = sim.call(lambda: sim.gripper.settings)
+    sim.call(sim.gripper.apply_settings, dataclasses.replace(settings, finger1="fmf"))  # a power-cycle
+    assert sim.call(lambda: sim.gripper.fingers[0].tare_offset) == 0.0
+    page.reload()
+    live(page)
+    page.click("#form-tare button[type=submit]")
+    page.wait_for_function("document.querySelector('#form-tare output').innerText === 'E_SUCCESS'")
+    assert sim.call(lambda: sim.gripper.fingers[0].tare_offset) == pytest.approx(FMF_ZERO_DRIFT_N)
+    assert sim.call(lambda: sim.gripper.fingers[0].fmf_force(0.0)) == pytest.approx(0.0)
+
+
+class _CrashingScript(FirmwarePlugin):
+    """An on-board script with a bug: its command C1h divides by zero."""
+
+    name = "crashing"
+    commands = (0xC1,)
+
+    def handle(self, gripper: ScriptHost, session: Session, command_id: int, payload: bytes,
+               now: float) -> Frame:
+        return Frame.reply(command_id, Status.E_SUCCESS, bytes([1 // len(payload)]))
+
+
+def test_scripting_page_shows_a_script_failure(fresh_sim: LiveSim, page: Any) -> None:
+    """Issue 15 item 8: a script that fails is aborted and SF_SCRIPT_FAILURE shows "on" (000 App. B D20);
+    starting a script from the page resets it ("The flag is reset whenever a script is started")."""
+    sim = fresh_sim
+    page.goto(sim.url + "/scripting")
+    live(page)
+    page.wait_for_function("document.getElementById('script-flag-failure').innerText === 'off'")
+    sim.call(sim.gripper.load_plugin, _CrashingScript())
+    page.wait_for_function("document.getElementById('script-running').innerText === 'crashing'")
+    assert page.inner_text("#script-flag-running") == "on"
+    with socket.create_connection(("127.0.0.1", sim.tcp.port), timeout=5) as s:
+        s.sendall(Frame(0xC1, b"").encode())  # the request that hits the bug
+        assert read_status(s) == "E_CMD_FAILED"
+        s.sendall(Frame(Command.DISCONNECT).encode())
+        read_status(s)
+    assert sim.snapshot().flags & SystemFlag.SF_SCRIPT_FAILURE
+    page.wait_for_function("document.getElementById('script-flag-failure').innerText === 'on'")
+    assert page.inner_text("#script-flag-running") == "off"
+    assert page.inner_text("#script-running") == "none"
+    assert page.locator("#flag-list li[data-flag=SF_SCRIPT_FAILURE].on").count() == 1
+    shot(page, "scripting-failure")
+    page.select_option("#script-name", "if_of_mirror")
+    page.click("#form-script button[type=submit]")
+    page.wait_for_function("document.getElementById('script-flag-failure').innerText === 'off'")
+    assert page.inner_text("#script-running") == "if_of_mirror"
+    assert not sim.snapshot().flags & SystemFlag.SF_SCRIPT_FAILURE
+
+
 CONTRAST_JS = """
 () => {
   function rgb(c) { const m = c.match(/[\\d.]+/g).map(Number); return m; }
@@ -313,23 +398,37 @@ CONTRAST_JS = """
 }
 """
 
+# A control's hit area: the element, or for a check box the label around it (a click there toggles
+# it, see test_check_boxes_toggle_from_the_edge_of_their_label). Disabled boxes are displays (the
+# Fieldbus Monitor's bits), not targets. Height and width must both be at least 40 px.
 TARGETS_JS = """
 () => Array.from(document.querySelectorAll(
-    'main button, main select, main input:not([type=checkbox]), #gripper-box button, nav button, nav > ul > li > a'))
+    'main button, main select, main input:not([disabled]), #gripper-box button, nav button, nav > ul > li > a'))
   .filter(e => e.offsetParent)
-  .map(e => [e.outerHTML.slice(0, 60), e.getBoundingClientRect().height])
+  .map(e => {
+    const target = (e.type === 'checkbox' && e.closest('label')) || e;
+    const r = target.getBoundingClientRect();
+    return [e.outerHTML.slice(0, 60), Math.min(r.height, r.width)];
+  })
   .filter(x => x[1] < 40)
+"""
+
+CHECKBOXES_JS = """
+() => Array.from(document.querySelectorAll('main input[type=checkbox]:not([disabled])'))
+  .filter(e => e.offsetParent).map(e => e.id)
 """
 
 
 @pytest.mark.parametrize("viewport", ["phone", "laptop"])
 def test_contrast_and_touch_targets(sim: LiveSim, browser: Any, viewport: str) -> None:
-    """Issue 15 item 14: text at WCAG AA contrast (4.5:1, large 3:1), controls at least 40 px tall."""
+    """Issue 15 item 14: text at WCAG AA contrast (4.5:1, large 3:1), controls (check boxes too) ≥ 40 × 40 px."""
     errors: list[str] = []
     page = _page(browser, VIEWPORTS[viewport], errors)
     for path in PAGES:
         page.goto(sim.url + path)
         live(page)
+        if path.startswith("/settings"):
+            page.wait_for_function("document.getElementById('settings-form').dataset.loaded === '1'")
         assert page.evaluate(CONTRAST_JS) == [], path
         assert page.evaluate(TARGETS_JS) == [], path
         assert page.locator("[aria-live]").count() >= 1
@@ -339,6 +438,42 @@ def test_contrast_and_touch_targets(sim: LiveSim, browser: Any, viewport: str) -
     label = page.get_attribute("#plot-width", "aria-label") or ""
     assert label.startswith("Width over the last 30 s"), label
     page.context.close()
+    assert not errors
+
+
+@pytest.mark.parametrize("viewport", ["phone", "laptop"])
+def test_check_boxes_toggle_from_the_edge_of_their_label(sim: LiveSim, browser: Any, viewport: str) -> None:
+    """Issue 15 item 14: a check box's 40 px hit area is real: a tap 2 px inside its label's corner toggles it."""
+    errors: list[str] = []
+    page = _page(browser, VIEWPORTS[viewport], errors)
+    seen: set[str] = set()
+    for path in PAGES:
+        page.goto(sim.url + path)
+        live(page)
+        if path.startswith("/settings"):
+            page.wait_for_function("document.getElementById('settings-form').dataset.loaded === '1'")
+        for box in page.evaluate(CHECKBOXES_JS):
+            seen.add(box)
+            before = page.is_checked(f"#{box}")
+            for corner in ("top-left", "bottom-right"):
+                # the whole label in view (a phone scrolls a wide table sideways), then its rectangle
+                r = page.evaluate(f"""(() => {{
+                    const label = document.getElementById('{box}').closest('label');
+                    label.scrollIntoView({{block: 'center', inline: 'center'}});
+                    return JSON.parse(JSON.stringify(label.getBoundingClientRect())); }})()""")
+                assert min(r["width"], r["height"]) >= 40, (path, box, r)
+                x, y = (r["x"] + 2, r["y"] + 2) if corner == "top-left" else (r["right"] - 2, r["bottom"] - 2)
+                hit = page.evaluate(f"(document.elementFromPoint({x}, {y}) || {{outerHTML: 'nothing'}})"
+                                    ".outerHTML.slice(0, 100)")
+                assert hit.startswith('<label class="check"') or hit.startswith(f'<input type="checkbox" id="{box}"') \
+                    or f'id="{box}"' in hit, (path, box, corner, hit, r)
+                page.mouse.click(x, y)
+                assert page.is_checked(f"#{box}") != before, (path, box, corner)
+                page.mouse.click(x, y)
+                assert page.is_checked(f"#{box}") == before, (path, box, corner)
+    page.context.close()
+    # the Command Interface page's protocol options and DHCP, the System Log's "follow"
+    assert {"set-crc_check", "if-dhcp", "log-follow"} <= seen, seen
     assert not errors
 
 

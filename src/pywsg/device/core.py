@@ -548,7 +548,10 @@ class DeviceCore:
             return
         self.script_if = value
         for plugin in list(self.plugins.values()):
-            plugin.on_if_changed(self, value)
+            try:
+                plugin.on_if_changed(self, value)
+            except Exception as exc:  # a script error aborts the script (000 App. B D20 SF_SCRIPT_FAILURE)
+                self.abort_script(plugin.name, exc)
         self.changed()
 
     def set_script_of(self, value: int) -> None:
@@ -570,11 +573,26 @@ class DeviceCore:
         self.plugins[inst.name] = inst
         for cid in inst.commands:
             self._plugin_cmds[cid] = inst
-        self.script_failure = False
-        inst.start(self)
+        self.script_failure = False  # "reset whenever a script is started" (000 App. B, D20)
         self.log.add(self.clock(), LogLevel.INFO, f"script {inst.name} started")
+        try:
+            inst.start(self)
+        except Exception as exc:
+            self.abort_script(inst.name, exc)
         self.changed()
         return inst
+
+    def abort_script(self, name: str, error: BaseException) -> None:
+        """A script failed while running: it is aborted and SF_SCRIPT_FAILURE set (000 App. B, flag D20).
+
+        "An error occurred while executing a script and the script has been aborted. The flag is
+        reset whenever a script is started." Its command IDs answer E_CMD_UNKNOWN from now on.
+        """
+        self.log.add(self.clock(), LogLevel.ERROR,
+                     f"script {name} aborted: {type(error).__name__}: {error}".rstrip(": "))
+        self.unload_plugin(name)
+        self.script_failure = True
+        self.changed()
 
     def unload_plugin(self, name: str) -> None:
         inst = self.plugins.pop(name, None)

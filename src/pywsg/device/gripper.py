@@ -39,6 +39,7 @@ from .fingers import Finger
 from .handlers import HANDLERS, length_error, request_size
 from .health import Health
 from .log import LogLevel
+from .plugins import FirmwarePlugin
 from .profiles import get_profile
 from .session import Deliver, Session
 from .settings import Settings
@@ -341,7 +342,7 @@ class VirtualGripper(DeviceCore):
         entry = self._dispatch.get(cid)
         if entry is None:
             plugin = self._plugin_cmds.get(cid)
-            reply = Frame.reply(cid, S.E_CMD_UNKNOWN) if plugin is None else plugin.handle(self, s, cid, payload, now)
+            reply = Frame.reply(cid, S.E_CMD_UNKNOWN) if plugin is None else self._script_request(plugin, s, frame, now)
         else:
             handler, size, length_status = entry
             if size is not None and len(payload) != size and cid != Command.FAST_STOP:
@@ -367,6 +368,18 @@ class VirtualGripper(DeviceCore):
         return out
 
     # ------------------------------------------------------------------ time: poll / next_due
+
+    def _script_request(self, plugin: FirmwarePlugin, s: Session, frame: Frame, now: float) -> Frame:
+        """A request for a script's command ID; a script error aborts the script (000 App. B D20 SF_SCRIPT_FAILURE).
+
+        The failed request is answered E_CMD_FAILED (the manuals do not say; docs/fidelity.md).
+        """
+        cid = frame.command_id
+        try:
+            return plugin.handle(self, s, cid, frame.payload, now)
+        except Exception as exc:
+            self.abort_script(plugin.name, exc)
+            return Frame.reply(cid, S.E_CMD_FAILED)
 
     def poll(self) -> list[tuple[Session, Frame]]:
         """Everything due at ``clock()``: final replies, auto-updates, power-up completions.

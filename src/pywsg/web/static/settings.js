@@ -38,10 +38,20 @@
       if (f.group !== group) continue;
       const tr = document.createElement("tr");
       const th = document.createElement("th");
-      const label = document.createElement("label"); label.htmlFor = "set-" + f.name; label.textContent = f.label;
-      th.appendChild(label);
+      const el = input(f, values[f.name]);
       const td = document.createElement("td");
-      td.appendChild(input(f, values[f.name]));
+      if (el.type === "checkbox") {
+        // the hit area is a label around the box (>= 40 px); the row header names it
+        const caption = document.createElement("span"); caption.id = "set-" + f.name + "-label"; caption.textContent = f.label;
+        th.appendChild(caption);
+        el.setAttribute("aria-labelledby", caption.id);
+        const hit = document.createElement("label"); hit.className = "check"; hit.appendChild(el);
+        td.appendChild(hit);
+      } else {
+        const label = document.createElement("label"); label.htmlFor = "set-" + f.name; label.textContent = f.label;
+        th.appendChild(label);
+        td.appendChild(el);
+      }
       if (f.unit) { const u = document.createElement("span"); u.className = "muted"; u.textContent = " " + f.unit; td.appendChild(u); }
       const err = document.createElement("span"); err.className = "field-error"; err.dataset.for = f.name;
       td.appendChild(err);
