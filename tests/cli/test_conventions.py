@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from .conftest import WSG, Sim, free_port, run_wsg
+from .conftest import WSG, Result, Sim, free_port, run_wsg
 
 
 @pytest.fixture
@@ -181,6 +181,50 @@ def test_plc_demo_takes_url_and_exits_3_without_a_connection() -> None:
     assert r.code == 3 and f"modbus-tcp://127.0.0.1:{port}" in r.err and "Traceback" not in r.err, r
     old = run_wsg("plc-demo", "--port", str(port), "--timeout", "2")  # deprecated alias, still works
     assert old.code == 3 and "deprecated" in old.err, old
+
+
+def _assert_one_connection_error(r: Result, url: str) -> None:
+    """Exit 3 and a single `error:` line naming the URL: no traceback, no pymodbus log lines."""
+    assert r.code == 3, r
+    lines = r.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {url}"), r
+    assert "Traceback" not in r.err and ">>>>>" not in r.err and "pymodbus" not in r.err, r
+
+
+def test_plc_demo_against_a_port_that_never_answers_modbus() -> None:
+    """TCP accepted, Modbus never answered (e.g. the gripper's command port by mistake)."""
+    with socket.create_server(("127.0.0.1", 0)) as silent:
+        url = f"modbus-tcp://127.0.0.1:{silent.getsockname()[1]}"
+        r = run_wsg("plc-demo", "--url", url, "--cycles", "1", timeout=60)  # the kernel completes the handshake
+        _assert_one_connection_error(r, url)
+        assert "no Modbus reply within 3 s" in r.err
+        j = run_wsg("--json", "plc-demo", "--url", url, "--cycles", "1", timeout=60)
+        assert j.code == 3 and json.loads(j.out.splitlines()[-1])["event"] == "error", j
+
+
+def test_plc_demo_when_the_gripper_goes_away_mid_cycle() -> None:
+    sim = subprocess.Popen([str(WSG), "sim", "--json", "--no-uvloop", "--tcp-port", "off", "--udp-port", "off",
+                            "--serial", "off", "--web-port", "off", "--modbus-port", "0"],
+                           stdout=subprocess.PIPE, text=True)
+    demo: subprocess.Popen[str] | None = None
+    try:
+        assert sim.stdout is not None
+        url = json.loads(sim.stdout.readline())["url"]
+        demo = subprocess.Popen([str(WSG), "plc-demo", "--url", url, "--cycles", "1000"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        assert demo.stdout is not None
+        while "cycle 1 of" not in demo.stdout.readline():  # the demo is talking to the gripper
+            assert demo.poll() is None
+        sim.kill()
+        out, err = demo.communicate(timeout=60)
+    finally:
+        sim.kill()
+        sim.wait()
+        if demo is not None and demo.poll() is None:
+            demo.kill()
+    r = Result(subprocess.CompletedProcess(demo.args, demo.returncode, out, err))
+    _assert_one_connection_error(r, url)
+    assert "connection lost" in r.err
 
 
 def test_plc_demo_help_has_no_rst_markup() -> None:
