@@ -94,7 +94,7 @@ async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[int]
 def _connection_message(exc: OSError, where: str) -> str:
     """One line for a failed or lost Modbus/TCP connection, with a hint where none is given yet."""
     text = str(exc) if isinstance(exc, FieldbusConnectionError) else f"no Modbus/TCP connection to {where}: {exc}"
-    if text.endswith(")"):
+    if "(is " in text:   # already says what to check
         return text
     return f"{text} (is the gripper, or `wsg sim --modbus-port N`, running?)"
 

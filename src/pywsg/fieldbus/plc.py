@@ -104,7 +104,7 @@ class AsyncFieldbusGripper:
         client = AsyncModbusTcpClient(host, port=port, timeout=timeout, retries=0)
         if not await client.connect():
             client.close()
-            raise FieldbusConnectionError(f"modbus-tcp://{host}:{port}: connection refused or host unreachable")
+            raise FieldbusConnectionError(f"modbus-tcp://{host}:{port}: cannot connect, refused or no such host")
         self = cls(client, model, device_id, poll_interval)
         self.where, self.timeout = f"modbus-tcp://{host}:{port}", timeout
         # Start from the gripper's current outputs, so opening never fires an edge.
