@@ -107,6 +107,38 @@ def test_move_beyond_the_stroke_warns_that_the_gripper_clamps(sim: Sim) -> None:
     assert ok.code == 0 and "warning" not in ok.err, ok
 
 
+def test_release_grip_and_speed_beyond_the_limits_warn(sim: Sim) -> None:
+    """26h and 25h clamp the width to the stroke (000 §3.2.6, §3.2.7), every motion the speed to the
+    53h limits (000 §3.5.4): said on stderr, one line each."""
+    assert sim.wsg("home").code == 0
+    r = sim.wsg("release", "500", "--speed", "10000")
+    assert r.code == 0, r
+    assert r.err.splitlines() == [
+        "warning: 500 mm is outside the stroke 0..110 mm: the gripper clamps the target to 110 mm",
+        "warning: 10000 mm/s is outside the speed limits 5..420 mm/s: the gripper clamps the speed to 420 mm/s"]
+    r = sim.wsg("grip", "500", "--speed", "400")  # nothing there: E_CMD_FAILED, but the warning came first
+    assert "warning: 500 mm is outside the stroke 0..110 mm: the gripper clamps the part width to 110 mm" in r.err, r
+    ok = sim.wsg("release", "--speed", "400")
+    assert ok.code == 0 and "warning" not in ok.err, ok
+
+
+def test_force_limit_and_acceleration_beyond_the_limits_warn(fresh: Sim) -> None:
+    """32h clamps to min_force..nominal_force (overdrive_force in overdrive mode; 000 §3.3.3, §3.3.8),
+    30h to the acceleration limits (000 §3.3.1)."""
+    r = fresh.wsg("force-limit", "0")
+    assert r.code == 0 and "force_limit  5.00 N" in r.out, r
+    assert "warning: 0 N is outside the force limits 5..80 N: the gripper clamps the force limit to 5 N" in r.err
+    r = fresh.wsg("force-limit", "100")
+    assert "clamps the force limit to 80 N (`wsg overdrive on` allows up to 120 N)" in r.err, r
+    assert fresh.wsg("overdrive", "on").code == 0
+    r = fresh.wsg("force-limit", "100")
+    assert r.code == 0 and "force_limit  100.00 N" in r.out and "warning" not in r.err, r
+    r = fresh.wsg("accel", "99999")
+    assert "warning: 99999 mm/s² is outside the acceleration limits 100..5000 mm/s²" in r.err, r
+    ok = fresh.wsg("force-limit", "40")
+    assert ok.code == 0 and "warning" not in ok.err, ok
+
+
 # -- item 9: one meaning per option ------------------------------------------------------------
 
 def test_relative_negative_move_needs_no_double_dash(sim: Sim) -> None:
