@@ -32,7 +32,8 @@ __all__ = [
     "is_capture", "is_jsonl", "read_hexdump",
 ]
 
-DEFAULT_PORTS = frozenset({1000, 1500, 1501})  # TCP command port, UDP listen / reply ports (SPEC-NOTES)
+# TCP command port, UDP listen / reply ports: the factory settings (000 §1.1 leaves them to the web interface)
+DEFAULT_PORTS = frozenset({1000, 1500, 1501})
 _PCAP_MAGICS = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 _SEQ_MOD = 1 << 32
