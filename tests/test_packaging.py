@@ -82,3 +82,15 @@ def test_readme_images_survive_on_the_package_index() -> None:
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text) + re.findall(r"<img[^>]+src=\"([^\"]+)\"", text)
     assert all(re.match(r"https?://", src) for src in images), images
+
+
+def test_code_and_tests_cite_the_manuals_not_notes_outside_the_repository() -> None:
+    """Comments cite the manuals (000..003 §...) or docs/fidelity.md; the notes they were written from
+    are not shipped, so a reader could not follow such a citation."""
+    outside = ("SPEC" + "-NOTES", "../" + "shared")   # spelled in parts so this file does not find itself
+    guards = {ROOT / "tests" / "test_docs_examples.py"}   # the docs' own check names them in its rules
+    found = [f"{p.relative_to(ROOT)}:{n}" for folder in ("src", "tests", "benchmarks")
+             for p in sorted((ROOT / folder).rglob("*.py")) if p not in guards
+             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             if any(word in line for word in outside)]
+    assert not found, "cite the manual section or docs/fidelity.md instead:\n" + "\n".join(found)

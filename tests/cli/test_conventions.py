@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from .conftest import WSG, Sim, free_port, run_wsg
+from .conftest import WSG, Result, Sim, free_port, run_wsg
 
 
 @pytest.fixture
@@ -107,6 +107,38 @@ def test_move_beyond_the_stroke_warns_that_the_gripper_clamps(sim: Sim) -> None:
     assert ok.code == 0 and "warning" not in ok.err, ok
 
 
+def test_release_grip_and_speed_beyond_the_limits_warn(sim: Sim) -> None:
+    """26h and 25h clamp the width to the stroke (000 §3.2.6, §3.2.7), every motion the speed to the
+    53h limits (000 §3.5.4): said on stderr, one line each."""
+    assert sim.wsg("home").code == 0
+    r = sim.wsg("release", "500", "--speed", "10000")
+    assert r.code == 0, r
+    assert r.err.splitlines() == [
+        "warning: 500 mm is outside the stroke 0..110 mm: the gripper clamps the target to 110 mm",
+        "warning: 10000 mm/s is outside the speed limits 5..420 mm/s: the gripper clamps the speed to 420 mm/s"]
+    r = sim.wsg("grip", "500", "--speed", "400")  # nothing there: E_CMD_FAILED, but the warning came first
+    assert "warning: 500 mm is outside the stroke 0..110 mm: the gripper clamps the part width to 110 mm" in r.err, r
+    ok = sim.wsg("release", "--speed", "400")
+    assert ok.code == 0 and "warning" not in ok.err, ok
+
+
+def test_force_limit_and_acceleration_beyond_the_limits_warn(fresh: Sim) -> None:
+    """32h clamps to min_force..nominal_force (overdrive_force in overdrive mode; 000 §3.3.3, §3.3.8),
+    30h to the acceleration limits (000 §3.3.1)."""
+    r = fresh.wsg("force-limit", "0")
+    assert r.code == 0 and "force_limit  5.00 N" in r.out, r
+    assert "warning: 0 N is outside the force limits 5..80 N: the gripper clamps the force limit to 5 N" in r.err
+    r = fresh.wsg("force-limit", "100")
+    assert "clamps the force limit to 80 N (`wsg overdrive on` allows up to 120 N)" in r.err, r
+    assert fresh.wsg("overdrive", "on").code == 0
+    r = fresh.wsg("force-limit", "100")
+    assert r.code == 0 and "force_limit  100.00 N" in r.out and "warning" not in r.err, r
+    r = fresh.wsg("accel", "99999")
+    assert "warning: 99999 mm/s² is outside the acceleration limits 100..5000 mm/s²" in r.err, r
+    ok = fresh.wsg("force-limit", "40")
+    assert ok.code == 0 and "warning" not in ok.err, ok
+
+
 # -- item 9: one meaning per option ------------------------------------------------------------
 
 def test_relative_negative_move_needs_no_double_dash(sim: Sim) -> None:
@@ -181,6 +213,50 @@ def test_plc_demo_takes_url_and_exits_3_without_a_connection() -> None:
     assert r.code == 3 and f"modbus-tcp://127.0.0.1:{port}" in r.err and "Traceback" not in r.err, r
     old = run_wsg("plc-demo", "--port", str(port), "--timeout", "2")  # deprecated alias, still works
     assert old.code == 3 and "deprecated" in old.err, old
+
+
+def _assert_one_connection_error(r: Result, url: str) -> None:
+    """Exit 3 and a single `error:` line naming the URL: no traceback, no pymodbus log lines."""
+    assert r.code == 3, r
+    lines = r.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {url}"), r
+    assert "Traceback" not in r.err and ">>>>>" not in r.err and "pymodbus" not in r.err, r
+
+
+def test_plc_demo_against_a_port_that_never_answers_modbus() -> None:
+    """TCP accepted, Modbus never answered (e.g. the gripper's command port by mistake)."""
+    with socket.create_server(("127.0.0.1", 0)) as silent:
+        url = f"modbus-tcp://127.0.0.1:{silent.getsockname()[1]}"
+        r = run_wsg("plc-demo", "--url", url, "--cycles", "1", timeout=60)  # the kernel completes the handshake
+        _assert_one_connection_error(r, url)
+        assert "no Modbus reply within 3 s" in r.err
+        j = run_wsg("--json", "plc-demo", "--url", url, "--cycles", "1", timeout=60)
+        assert j.code == 3 and json.loads(j.out.splitlines()[-1])["event"] == "error", j
+
+
+def test_plc_demo_when_the_gripper_goes_away_mid_cycle() -> None:
+    sim = subprocess.Popen([str(WSG), "sim", "--json", "--no-uvloop", "--tcp-port", "off", "--udp-port", "off",
+                            "--serial", "off", "--web-port", "off", "--modbus-port", "0"],
+                           stdout=subprocess.PIPE, text=True)
+    demo: subprocess.Popen[str] | None = None
+    try:
+        assert sim.stdout is not None
+        url = json.loads(sim.stdout.readline())["url"]
+        demo = subprocess.Popen([str(WSG), "plc-demo", "--url", url, "--cycles", "1000"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        assert demo.stdout is not None
+        while "cycle 1 of" not in demo.stdout.readline():  # the demo is talking to the gripper
+            assert demo.poll() is None
+        sim.kill()
+        out, err = demo.communicate(timeout=60)
+    finally:
+        sim.kill()
+        sim.wait()
+        if demo is not None and demo.poll() is None:
+            demo.kill()
+    r = Result(subprocess.CompletedProcess(demo.args, demo.returncode, out, err))
+    _assert_one_connection_error(r, url)
+    assert "connection lost" in r.err
 
 
 def test_plc_demo_help_has_no_rst_markup() -> None:

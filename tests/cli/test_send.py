@@ -39,7 +39,7 @@ def test_send_unknown_command_is_the_manuals_example(sim: Sim) -> None:
 
 
 @pytest.mark.parametrize(("args", "status"), [
-    (["0x24", '"ac"'], "E_CMD_FORMAT_ERROR"),  # wrong key (SPEC-NOTES)
+    (["0x24", '"ac"'], "E_CMD_FORMAT_ERROR"),  # wrong key: "Acknowledge key is incorrect" (000 §3.2.5)
     (["preposition", "0", "50.0f"], "E_CMD_FORMAT_ERROR"),  # payload of the wrong length
     (["stop", "1"], "E_NO_PARAM_EXPECTED"),  # a payload for a command that takes none
     (["homing", "3"], "E_INVALID_PARAMETER"),  # homing direction out of range

@@ -1,7 +1,7 @@
 """A refused TCP client touches no device state (issue 13 item 8).
 
-000 §2.x / SPEC: one TCP client holds the command interface; a second one is served but every command
-gets E_ACCESS_DENIED. Its refused commands — and its garbage — must not set the device-wide
+docs/fidelity.md ("A refused TCP client"): one TCP client holds the command interface; a second one is
+served but every command gets E_ACCESS_DENIED. Its refused commands — and its garbage — must not set the device-wide
 SF_CMD_FAILURE ("the last command returned an error", Appendix B), which the controlling client and a
 PLC (discrete input 34) read as *their* command having failed.
 """

@@ -1,4 +1,5 @@
-"""Bytes in, frames out: parse errors answer with the status SPEC-NOTES names; sessions' rules."""
+"""Bytes in, frames out: parse errors answer with the status the manual names (000 §1.2.1, §3.1.1,
+Appendix A; docs/fidelity.md where it is silent); sessions' rules."""
 
 from __future__ import annotations
 

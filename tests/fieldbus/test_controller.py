@@ -1,4 +1,4 @@
-"""Fieldbus controller on the real virtual gripper, injected clock (002 §3.1, §4; SPEC-NOTES fieldbus)."""
+"""Fieldbus controller on the real virtual gripper, injected clock (002 §3.1, §4; docs/fidelity.md)."""
 
 from __future__ import annotations
 

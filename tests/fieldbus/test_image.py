@@ -1,4 +1,4 @@
-"""Register image: layout, units, Modbus views (002 §2.3, §3.1, §3.2; SPEC-NOTES fieldbus)."""
+"""Register image: layout, units, Modbus views (002 §2.3, §3.1, §3.2; docs/fidelity.md)."""
 
 from __future__ import annotations
 

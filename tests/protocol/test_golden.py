@@ -1,4 +1,5 @@
-"""Every golden vector of SPEC-NOTES, through the public API."""
+"""Every golden vector of the manual, through the public API: the example frames of 000 §1.2.1 and
+§1.2.2 and the checksum of 000 Appendix D."""
 
 from __future__ import annotations
 

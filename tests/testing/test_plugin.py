@@ -82,6 +82,27 @@ def test_user_suite_runs_with_the_installed_plugin(tmp_path: Path) -> None:
     assert "10 passed" in r.stdout
 
 
+def _first_python_block(page: Path) -> str:
+    text = page.read_text(encoding="utf-8")
+    start = text.index("```python\n") + len("```python\n")
+    return text[start:text.index("```", start)]
+
+
+def test_the_docs_fixture_example_runs_under_pytest_in_both_asyncio_modes(tmp_path: Path) -> None:
+    """docs/testing.md's first example is a test file: run it with pytest as a user would, with
+    pytest-asyncio in its default strict mode (the example marks its async test) and in auto mode."""
+    doc = Path(__file__).resolve().parents[2] / "docs" / "testing.md"
+    (tmp_path / "test_from_docs.py").write_text(_first_python_block(doc))
+    for mode in ("strict", "auto"):
+        r = subprocess.run(
+            [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-o", f"asyncio_mode={mode}",
+             "test_from_docs.py"],
+            cwd=tmp_path, capture_output=True, text=True, timeout=180,
+        )
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "5 passed" in r.stdout and "skipped" not in r.stdout, r.stdout
+
+
 def test_plugin_is_registered_through_the_entry_point() -> None:
     from importlib.metadata import entry_points
 

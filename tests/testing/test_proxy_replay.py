@@ -167,3 +167,42 @@ def test_replay_reconnects_after_a_recorded_disconnect(sim: SimThread, tmp_path:
         assert report.steps == 4 and report.matched, report.differences
         report = replay(rude, fresh.url)
         assert [(d.step, d.what) for d in report.differences] == [(3, "status")]
+
+
+def test_decode_reads_the_proxys_json_lines(sim: SimThread, tmp_path: Path) -> None:
+    """Issue 14 item 4: the exchange file `wsg proxy` writes as JSON lines is one `wsg decode -f` reads
+    (both --jsonl and the --json lines on stdout)."""
+    log = tmp_path / "cell.jsonl"
+    proxy = ProxyProc(sim.url, "--jsonl", str(log), "--json")
+    with Gripper(f"tcp://127.0.0.1:{proxy.port}") as g:
+        g.home()
+        g.width()
+    out, _ = proxy.stop()
+    stdout_log = tmp_path / "stdout.jsonl"
+    stdout_log.write_text(out)
+    for path in (log, stdout_log):
+        r = wsg("decode", "-f", str(path), "--json")
+        assert r.returncode == 0, r.stderr
+        frames = json.loads(r.stdout)
+        seen = [(f["log_direction"], f["direction"], f["command"], f["status"]) for f in frames]
+        homing = seen.index(("tx", "request", "HOMING", None))
+        assert seen[homing + 1:homing + 3] == [("rx", "reply", "HOMING", "E_CMD_PENDING"),   # 000 §3.2.1
+                                               ("rx", "reply", "HOMING", "E_SUCCESS")]
+        width = next(f for f in frames if f["command"] == "GET_OPENING_WIDTH" and f["direction"] == "reply")
+        assert width["params"]["width"] == pytest.approx(110.0) and width["checksum_ok"] is True
+    text = wsg("decode", "-f", str(log))
+    assert text.returncode == 0, text.stderr
+    assert " TX (client -> gripper)" in text.stdout and "reply HOMING (20h)" in text.stdout
+    assert "not a hex byte" not in text.stderr
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(log.read_text().splitlines()[0] + "\n{oops\n")
+    r = wsg("decode", "-f", str(bad))
+    assert r.returncode == 1 and f"error: {bad}: line 2: not a JSON object" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_proxy_names_the_option_whose_file_cannot_be_written(sim: SimThread, tmp_path: Path) -> None:
+    for option in ("--pcap", "--jsonl"):
+        r = wsg("proxy", "--listen", "0", "--to", sim.url, option, str(tmp_path / "no" / "such" / "x"))
+        assert r.returncode == 2 and f"Invalid value for {option}: cannot write" in r.stderr, r.stderr
+        assert "--to" not in r.stderr and "Traceback" not in r.stderr

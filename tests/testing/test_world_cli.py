@@ -46,7 +46,29 @@ def test_wsg_world_refuses_bad_input_and_says_why(sim_proc: type[SimProc]) -> No
     r = wsg("world", "--sim", sim.web, "part")
     assert r.returncode == 2 and "WIDTH" in r.stderr
     r = wsg("world", "--sim", "http://127.0.0.1:1", "state")
-    assert r.returncode == 1 and "cannot reach the sim" in r.stderr
+    assert r.returncode == 3 and "cannot reach the sim" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_world_options_mean_the_same_everywhere(sim_proc: type[SimProc]) -> None:
+    """Issue 16 item 9: a negative DELTA needs no `--`; `--json` after the subcommand as before it."""
+    sim = sim_proc()
+    before = json.loads(wsg("world", "--sim", sim.web, "--json", "state").stdout)["temperature"]
+    r = wsg("world", "--sim", sim.web, "heat", "-10", "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["state"]["temperature"] <= before - 9
+    r = wsg("world", "--sim", sim.web, "state", "--json")
+    assert r.returncode == 0, r.stderr
+    assert set(json.loads(r.stdout)) >= {"gripper_state", "temperature", "part"}
+    r = wsg("world", "--sim", sim.web.removeprefix("http://"), "part", "20", "--json")  # HOST:PORT is http
+    assert r.returncode == 0 and json.loads(r.stdout)["state"]["part"] == 20.0, r.stderr
+
+
+def test_wsg_world_bad_sim_address_is_one_line_not_a_traceback() -> None:
+    r = wsg("world", "--sim", "bogus.invalid", "state")
+    assert r.returncode == 3 and "cannot reach the sim" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    r = wsg("world", "--sim", "tcp://127.0.0.1:1000", "state")  # the gripper's URL, not the web port's
+    assert r.returncode == 2 and "--sim" in r.stderr and "http://HOST:PORT" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
 
 
 def test_sim_part_at_start_makes_the_plc_demo_hold_parts(sim_proc: type[SimProc]) -> None:

@@ -1,4 +1,5 @@
-"""WSG frames from packet captures (pcap / pcapng, read with dpkt) and from hex-dump files.
+"""WSG frames from packet captures (pcap / pcapng, read with dpkt), from JSON lines (``wsg proxy
+--jsonl``, ``wsg --log-file``) and from hex-dump files.
 
 TCP streams are reassembled per direction (sequence numbers; retransmissions and overlaps trimmed,
 out-of-order segments held until the gap fills) and parsed with the protocol's incremental
@@ -27,10 +28,12 @@ from ..protocol.decode import DecodedFrame, Direction, decode_bytes, decode_fram
 from ..protocol.frame import OVERHEAD
 
 __all__ = [
-    "DEFAULT_PORTS", "CapturedFrame", "bytes_from_file", "frames_from_capture", "is_capture", "read_hexdump",
+    "DEFAULT_PORTS", "CapturedFrame", "LoggedFrame", "bytes_from_file", "frames_from_capture", "frames_from_jsonl",
+    "is_capture", "is_jsonl", "read_hexdump",
 ]
 
-DEFAULT_PORTS = frozenset({1000, 1500, 1501})  # TCP command port, UDP listen / reply ports (SPEC-NOTES)
+# TCP command port, UDP listen / reply ports: the factory settings (000 §1.1 leaves them to the web interface)
+DEFAULT_PORTS = frozenset({1000, 1500, 1501})
 _PCAP_MAGICS = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 _SEQ_MOD = 1 << 32
@@ -60,6 +63,56 @@ def is_capture(path: str | Path) -> bool:
     with open(path, "rb") as f:
         magic = f.read(4)
     return magic in _PCAP_MAGICS or magic == _PCAPNG_MAGIC
+
+
+@dataclass
+class LoggedFrame:
+    """One frame of a JSON-lines communication log (``wsg proxy --jsonl``, ``wsg --log-file``)."""
+
+    time: float  # Unix seconds, as logged
+    direction: str  # "tx" (client to gripper) or "rx"
+    decoded: DecodedFrame
+
+    def to_json(self) -> dict[str, Any]:
+        return {"time": self.time, "log_direction": self.direction, **self.decoded.to_json()}
+
+    def header(self) -> str:
+        way = "client -> gripper" if self.direction == "tx" else "gripper -> client"
+        return f"{self.time:.6f} {self.direction.upper()} ({way})"
+
+
+def is_jsonl(path: str | Path) -> bool:
+    """True when the file's first non-blank character opens a JSON object (a JSON-lines log)."""
+    with open(path, "rb") as f:
+        head = f.read(256).lstrip()
+    return head.startswith(b"{")
+
+
+def frames_from_jsonl(path: str | Path, direction: Direction | None = None) -> list[LoggedFrame]:
+    """The frames of a JSON-lines log: each line ``{"time": s, "direction": "tx"|"rx", "hex": "AA AA ..."}``
+    (more keys, the decoded fields, are ignored and decoded afresh). ``tx`` lines decode as requests,
+    ``rx`` as replies, unless ``direction`` says otherwise. Lines of other events are skipped.
+    Raises ValueError naming the line when one is not JSON or its hex is bad."""
+    import json
+
+    out: list[LoggedFrame] = []
+    for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            obj = json.loads(line)
+        except ValueError:
+            raise ValueError(f"line {n}: not a JSON object (a JSON-lines log has one per line)") from None
+        if not isinstance(obj, dict) or obj.get("direction") not in ("tx", "rx") or not obj.get("hex"):
+            continue
+        try:
+            raw = parse_hex(str(obj["hex"]))
+        except ValueError as exc:
+            raise ValueError(f"line {n}: {exc}") from None
+        way: Direction = direction or ("request" if obj["direction"] == "tx" else "reply")
+        when = float(obj.get("time") or 0.0)
+        out.extend(LoggedFrame(when, obj["direction"], d) for d in decode_bytes(raw, way))
+    return out
 
 
 _XXD = re.compile(r"^\s*[0-9a-fA-F]{4,}:\s+((?:[0-9a-fA-F]{2,4}\s?)+)")  # xxd: "00000000: aaaa aa01  ...."
@@ -332,14 +385,18 @@ def frames_from_capture(path: str | Path, ports: Collection[int] | None = None) 
 
 def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = False,
                 direction: Direction | None = None) -> int:
-    """Decode a capture, hex-dump or binary file and print it; returns the exit status
+    """Decode a capture, JSON-lines log, hex-dump or binary file and print it; returns the exit status
     (1 when any frame is bad, truncated or the file cannot be read)."""
     import json
 
     import click
 
     try:
-        if is_capture(path):
+        if is_jsonl(path):
+            logged = frames_from_jsonl(path, direction)
+            _print_framed(logged, as_json, "no WSG frames in the log")
+            decoded = [f.decoded for f in logged]
+        elif is_capture(path):
             captured = frames_from_capture(path, ports or None)
             if direction is not None:
                 for c in captured:
@@ -371,3 +428,21 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
         click.echo(f"error: {path}: {exc}", err=True)
         return 1
     return 1 if any(d.error or d.checksum_ok is False for d in decoded) else 0
+
+
+def _print_framed(frames: list[LoggedFrame], as_json: bool, none: str) -> None:
+    """Print frames with a header line each (time, direction), or as one JSON list."""
+    import json
+
+    import click
+
+    if as_json:
+        click.echo(json.dumps([f.to_json() for f in frames], indent=2, ensure_ascii=False))
+        return
+    for i, f in enumerate(frames):
+        if i:
+            click.echo()
+        click.echo(f.header())
+        click.echo("\n".join(f.decoded.lines()))
+    if not frames:
+        click.echo(none, err=True)

@@ -20,7 +20,8 @@ from ..protocol.decode import DecodedFrame, Direction, decode_bytes, parse_hex
 @click.option(
     "-f", "--file", "path", type=click.Path(exists=True, dir_okay=False),
     help="Decode a file instead: pcap/pcapng capture (TCP streams reassembled, UDP datagrams), "
-    "hex dump (plain hex, xxd, hexdump -C) or raw binary frames.",
+    "JSON lines (wsg proxy --jsonl, wsg --log-file), hex dump (plain hex, xxd, hexdump -C) or raw "
+    "binary frames.",
 )
 @click.option(
     "--port", "ports", type=int, multiple=True, metavar="PORT",

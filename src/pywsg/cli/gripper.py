@@ -87,14 +87,63 @@ def warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
 
-async def _check_stroke(g: Any, width: float, relative: bool) -> None:
-    """Warn when the target is outside 0..stroke: the gripper clamps it (000 §3.2.2), so the motion
-    ends elsewhere than asked (the web API refuses the same request with 422)."""
-    stroke = (await g.limits()).stroke
+def warn_outside(value: float, lo: float, hi: float, unit: str, limits: str, what: str, extra: str = "") -> None:
+    """Warn (stderr, one line) when ``value`` is outside ``lo..hi``, naming the limit and where the
+    gripper clamps it: it executes the command with the clamped value, so the result differs from what
+    was asked (the web API refuses the same request with 422)."""
+    tolerance = 1e-4 * max(1.0, abs(hi))   # limits arrive as float32 (53h, 000 §3.5.4)
+    if lo - tolerance <= value <= hi + tolerance:
+        return
+    edge = hi if value > hi else lo
+    warn(f"{value:g} {unit} is outside {limits} {lo:g}..{hi:g} {unit}: the gripper clamps {what} to {edge:g} {unit}"
+         + extra)
+
+
+async def _check_stroke(g: Any, lim: Any, width: float, relative: bool, what: str = "the target") -> None:
+    """A width outside 0..stroke mm: 21h, 25h and 26h clamp it (000 §3.2.2, §3.2.6, §3.2.7)."""
     target = (await g.width()) + width if relative else width
-    if target > stroke or target < 0:
-        edge = stroke if target > stroke else 0.0
-        warn(f"{target:g} mm is outside the stroke 0..{stroke:g} mm: the gripper clamps the target to {edge:g} mm")
+    warn_outside(target, 0.0, lim.stroke, "mm", "the stroke", what)
+
+
+def _check_speed(lim: Any, speed: float) -> None:
+    """A speed outside the 53h speed limits (mm/s): the gripper clamps it."""
+    warn_outside(speed, lim.min_speed, lim.max_speed, "mm/s", "the speed limits", "the speed")
+
+
+async def _check_force(g: Any, lim: Any, force: float) -> None:
+    """A force limit outside min_force..nominal_force N (..overdrive_force in overdrive mode, 000 §3.3.3,
+    §3.3.8): the gripper clamps it."""
+    from ..protocol import SystemFlag
+
+    overdrive = bool(await g.system_state() & SystemFlag.SF_OVERDRIVE_MODE)
+    hi = lim.overdrive_force if overdrive else lim.nominal_force
+    extra = ""
+    if not overdrive and lim.nominal_force < force and lim.overdrive_force > lim.nominal_force:
+        extra = f" (`wsg overdrive on` allows up to {lim.overdrive_force:g} N)"
+    warn_outside(force, lim.min_force, hi, "N", "the force limits" + (" in overdrive" if overdrive else ""),
+                 "the force limit", extra)
+
+
+async def _check_motion(g: Any, width: float | None, speed: float, *, relative: bool = False,
+                        force: float | None = None, what: str = "the target") -> None:
+    """Warn about every value of a motion command the gripper will clamp (one 53h request)."""
+    lim = await g.limits()
+    if width is not None:
+        await _check_stroke(g, lim, width, relative, what)
+    _check_speed(lim, speed)
+    if force is not None:
+        await _check_force(g, lim, force)
+
+
+async def _check_acceleration(g: Any, acceleration: float) -> None:
+    """An acceleration outside the 53h limits (mm/s²): 30h clamps it (000 §3.3.1)."""
+    lim = await g.limits()
+    warn_outside(acceleration, lim.min_acceleration, lim.max_acceleration, "mm/s²", "the acceleration limits",
+                 "the acceleration")
+
+
+async def _check_force_limit(g: Any, force: float) -> None:
+    await _check_force(g, await g.limits(), force)
 
 
 # -- motion ------------------------------------------------------------------------------------
@@ -126,7 +175,7 @@ def move(ctx: click.Context, /, width: float, speed: float, relative: bool, stop
          motion_timeout: float, **kw: Any) -> None:
     """Pre-position the fingers (21h) to WIDTH mm (or by WIDTH mm with --relative)."""
     async def act(g: Any) -> dict[str, Any]:
-        await _check_stroke(g, width, relative)
+        await _check_motion(g, width, speed, relative=relative)
         await g.move(width, speed, relative=relative, stop_on_block=stop_on_block, wait=wait)
         return {"width": await _readback(g)} if wait else {"pending": True}
     _done(ctx, "move", run(ctx, kw, act, motion_timeout))
@@ -144,6 +193,7 @@ def grip(ctx: click.Context, /, width: float, speed: float, force: float | None,
          **kw: Any) -> None:
     """Grip a part of nominal width WIDTH mm (25h Grip Part). Exit 1 with E_CMD_FAILED when no part is found."""
     async def act(g: Any) -> dict[str, Any]:
+        await _check_motion(g, width, speed, force=force, what="the part width")
         await g.grip(width, speed, force, wait=wait)
         if not wait:
             return {"pending": True}
@@ -161,6 +211,7 @@ def release(ctx: click.Context, /, width: float | None, speed: float, wait: bool
             **kw: Any) -> None:
     """Release a gripped part by opening to WIDTH mm (26h Release Part; default: fully open, the stroke)."""
     async def act(g: Any) -> dict[str, Any]:
+        await _check_motion(g, width, speed)
         w = width if width is not None else (await g.limits()).stroke
         await g.release(w, speed, wait=wait)
         return {"width": await _readback(g)} if wait else {"pending": True}
@@ -225,7 +276,9 @@ def stats(ctx: click.Context, /, reset: bool, **kw: Any) -> None:
     emit(run(ctx, kw, act), as_json(ctx), "statistics")
 
 
-def _get_set(name: str, getter: str, setter: str, key: str, unit: str, doc: str) -> click.Command:
+def _get_set(name: str, getter: str, setter: str, key: str, unit: str, doc: str,
+             check: Callable[[Any, float], Awaitable[None]]) -> click.Command:
+    """A read/set command; ``check(gripper, value)`` warns before a value the gripper will clamp."""
     @click.command(name, help=f"{doc} Without VALUE: read it; with VALUE ({unit}): set it (session only).")
     @click.argument("value", type=float, required=False)
     @common_options
@@ -233,6 +286,7 @@ def _get_set(name: str, getter: str, setter: str, key: str, unit: str, doc: str)
     def cmd(ctx: click.Context, /, value: float | None, **kw: Any) -> None:
         async def act(g: Any) -> Any:
             if value is not None:
+                await check(g, value)
                 await getattr(g, setter)(value)
             return await getattr(g, getter)()  # read back: the gripper clamps to its limits
         emit({key: run(ctx, kw, act)}, as_json(ctx), key)
@@ -240,9 +294,9 @@ def _get_set(name: str, getter: str, setter: str, key: str, unit: str, doc: str)
 
 
 accel = _get_set("accel", "acceleration", "set_acceleration", "acceleration", "mm/s²",
-                 "Acceleration for motions in mm/s² (30h/31h).")
+                 "Acceleration for motions in mm/s² (30h/31h).", _check_acceleration)
 force_limit = _get_set("force-limit", "force_limit", "set_force_limit", "force_limit", "N",
-                       "Gripping force limit in N (32h/33h).")
+                       "Gripping force limit in N (32h/33h).", _check_force_limit)
 
 
 @click.command("soft-limits")

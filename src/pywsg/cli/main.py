@@ -121,7 +121,8 @@ def cli(ctx: click.Context, url: str, verbose: int, log_flag: bool, log_file: st
         logging.basicConfig(level=level, format="warning: %(message)s")
         # the driver's WARNING on a lost connection would repeat the error line the command prints
         logging.getLogger("pywsg.client").setLevel(logging.ERROR)
-        logging.getLogger("pymodbus").setLevel(logging.ERROR)  # its bind failure repeats our error line
+        # pymodbus logs transport failures (and its last frames) at ERROR/CRITICAL; our error line says it
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
     ctx.ensure_object(dict)
     ctx.obj["url"] = url
     ctx.obj["verbose"] = verbose

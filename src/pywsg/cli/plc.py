@@ -21,7 +21,7 @@ from typing import Any
 import click
 
 from ..fieldbus.image import CmdFlag, OutputImage
-from ..fieldbus.plc import AsyncFieldbusGripper, GrippingCycle
+from ..fieldbus.plc import AsyncFieldbusGripper, FieldbusConnectionError, GrippingCycle
 from ..protocol import GState
 from .runner import EXIT_CONNECTION
 
@@ -94,6 +94,14 @@ async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[int]
             gripper.faults.place_part(part_width)
         assert sim.modbus_port is not None
         yield sim.modbus_port
+
+
+def _connection_message(exc: OSError, where: str) -> str:
+    """One line for a failed or lost Modbus/TCP connection, with a hint where none is given yet."""
+    text = str(exc) if isinstance(exc, FieldbusConnectionError) else f"no Modbus/TCP connection to {where}: {exc}"
+    if "(is " in text:   # already says what to check
+        return text
+    return f"{text} (is the gripper, or `wsg sim --modbus-port N`, running?)"
 
 
 MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
@@ -192,10 +200,10 @@ def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | 
         result = asyncio.run(main())
     except (ConnectionError, OSError) as exc:
         where = "the in-process virtual gripper" if local_sim else f"modbus-tcp://{target_host}:{target_port}"
-        message = f"no Modbus/TCP connection to {where}: {exc}"
+        message = _connection_message(exc, where)
         if as_json:
             click.echo(json.dumps({"event": "error", "ok": False, "error": message}))
-        click.echo(f"error: {message} (is the gripper, or `wsg sim --modbus-port N`, running?)", err=True)
+        click.echo(f"error: {message}", err=True)
         sys.exit(EXIT_CONNECTION)
     if as_json:
         click.echo(json.dumps({"event": "done", "ok": result.completed, **dataclasses.asdict(result)}))

@@ -8,8 +8,18 @@ import json
 import signal
 import sys
 from pathlib import Path
+from typing import TextIO
 
 import click
+
+
+def _open_jsonl(path: Path) -> TextIO:
+    """The --jsonl file, opened for writing (the caller closes it); a path that cannot be written is
+    a usage error naming --jsonl."""
+    try:
+        return open(path, "w", encoding="utf-8")   # the caller closes it
+    except OSError as exc:
+        raise click.BadParameter(f"cannot write {path}: {exc.strerror or exc}", param_hint="--jsonl") from None
 
 
 @click.command("proxy")
@@ -50,7 +60,7 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
     except ValueError:
         raise click.BadParameter(f"{listen!r}: give PORT or HOST:PORT", param_hint="--listen") from None
     as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json
-    jsonl_file = open(jsonl, "w", encoding="utf-8") if jsonl else None  # noqa: SIM115 - closed below
+    jsonl_file = _open_jsonl(jsonl) if jsonl else None
     if quiet:
         log = CommLog(jsonl=jsonl_file)
     elif as_json:
@@ -68,6 +78,10 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
     try:
         tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap)
     except (ValueError, OSError) as exc:
+        if jsonl_file is not None:
+            jsonl_file.close()
+        if isinstance(exc, OSError) and pcap is not None:   # the target URL is only parsed (ValueError)
+            raise click.BadParameter(f"cannot write {pcap}: {exc.strerror or exc}", param_hint="--pcap") from None
         raise click.BadParameter(str(exc), param_hint="--to") from None
 
     async def main() -> None:

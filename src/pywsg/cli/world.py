@@ -14,12 +14,35 @@ from typing import Any
 import click
 
 DEFAULT_SIM = "http://127.0.0.1:8080"
+EXIT_CONNECTION = 3   # as everywhere in `wsg` (cli/runner.py)
+
+
+class Unreachable(click.ClickException):
+    """The sim's web port cannot be reached: exit 3, like every connection failure of `wsg`."""
+
+    exit_code = EXIT_CONNECTION
+
+
+def sim_base(sim: str) -> str:
+    """The sim's web address as an http(s) URL: ``HOST[:PORT]`` means ``http://HOST[:PORT]``.
+
+    Raises click.BadParameter (exit 2) for another scheme, e.g. the gripper's ``tcp://`` URL.
+    """
+    text = sim.strip().rstrip("/")
+    if "://" not in text:
+        text = f"http://{text}"
+    scheme = text.split("://", 1)[0].lower()
+    if scheme not in ("http", "https") or not text.split("://", 1)[1]:
+        raise click.BadParameter(f"{sim!r}: expected the sim's web address, http://HOST:PORT "
+                                 f"(wsg sim --web-port), e.g. {DEFAULT_SIM}", param_hint="--sim")
+    return text
 
 
 def call(sim: str, method: str, path: str, body: dict[str, Any] | None = None, password: str | None = None,
          timeout: float = 5.0) -> dict[str, Any]:
-    """One request to the world API; returns the JSON reply or raises click.ClickException."""
-    url = sim.rstrip("/") + "/api/world" + path
+    """One request to the world API (``timeout`` in s); returns the JSON reply or raises a
+    click.ClickException: exit 1 for a refusal, 2 for a bad ``sim`` URL, 3 when the sim is unreachable."""
+    url = sim_base(sim) + "/api/world" + path
     data = json.dumps(body).encode() if body is not None else None
     req = urllib.request.Request(url, data=data, method=method)
     if data is not None:
@@ -39,9 +62,9 @@ def call(sim: str, method: str, path: str, body: dict[str, Any] | None = None, p
         if exc.code == 404:
             detail = f"{url}: not found — is this a wsg sim web port of this pywsg version?"
         raise click.ClickException(f"{detail}{hint}") from None
-    except (urllib.error.URLError, OSError) as exc:
+    except (urllib.error.URLError, OSError, ValueError) as exc:
         reason = getattr(exc, "reason", exc)
-        raise click.ClickException(
+        raise Unreachable(
             f"cannot reach the sim at {sim}: {reason} (is `wsg sim` running with its web port on?)"
         ) from None
 
@@ -89,10 +112,25 @@ def world(ctx: click.Context, sim: str, password: str | None, as_json: bool) -> 
       wsg world fault finger on --finger 2
       wsg world heat 40            40 °C warmer at once
       wsg world state              what the sim is doing now
+
+    Exit status: 0 done, 1 the sim refused (bad value, password), 2 usage error, 3 sim unreachable.
     """
     parent = ctx.obj if isinstance(ctx.obj, dict) else {}
     ctx.obj = {**parent, "sim": sim, "password": password,
                "world_json": as_json or bool(parent.get("json"))}
+
+
+def _set_json(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if value:
+        ctx.obj["world_json"] = True
+
+
+#: ``--json`` after the subcommand too (``wsg world state --json``): the same as before it.
+json_option = click.option("--json", "as_json", is_flag=True, expose_value=False,
+                           callback=_set_json, help="Print the API's JSON reply.")
+
+#: A negative DELTA (``wsg world heat -10``) is a number, not an option.
+NUMBERS = {"ignore_unknown_options": True}
 
 
 def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None = None) -> None:
@@ -100,6 +138,7 @@ def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None
 
 
 @world.command("part")
+@json_option
 @click.argument("width", type=float, required=False)
 @click.option("--stiffness", type=float, default=None, help="Part stiffness in N/mm (default: firm plastic).")
 @click.option("--remove", is_flag=True, help="Take the part away.")
@@ -120,6 +159,7 @@ def part(ctx: click.Context, width: float | None, stiffness: float | None, remov
 
 
 @world.command("block")
+@json_option
 @click.argument("width", type=float)
 @click.pass_context
 def block(ctx: click.Context, width: float) -> None:
@@ -128,6 +168,7 @@ def block(ctx: click.Context, width: float) -> None:
 
 
 @world.command("unblock")
+@json_option
 @click.pass_context
 def unblock(ctx: click.Context) -> None:
     """Remove the obstacle."""
@@ -135,6 +176,7 @@ def unblock(ctx: click.Context) -> None:
 
 
 @world.command("fault")
+@json_option
 @click.argument("kind", type=click.Choice(["power", "current", "finger"]))
 @click.argument("state", type=click.Choice(["on", "off"]))
 @click.option("--finger", type=click.IntRange(1, 2), default=1, show_default=True, help="Finger for KIND finger.")
@@ -147,7 +189,8 @@ def fault(ctx: click.Context, kind: str, state: str, finger: int) -> None:
     _run(ctx, "POST", "/fault", body)
 
 
-@world.command("heat")
+@world.command("heat", context_settings=NUMBERS)
+@json_option
 @click.argument("delta", type=float)
 @click.pass_context
 def heat(ctx: click.Context, delta: float) -> None:
@@ -156,6 +199,7 @@ def heat(ctx: click.Context, delta: float) -> None:
 
 
 @world.command("state")
+@json_option
 @click.pass_context
 def state(ctx: click.Context) -> None:
     """Gripper state, width, force, temperature, part, obstacle and faults."""

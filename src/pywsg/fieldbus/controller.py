@@ -5,7 +5,7 @@ request frames (20h Homing, 21h Pre-position, 22h Stop, 23h FAST STOP, 24h Ack, 
 32h Set Force Limit), so every rule of the binary protocol holds for the bus too; final replies come
 back through the session's ``deliver`` callback. Jog mode uses ``gripper.jog()``.
 
-Rules (manual, SPEC-NOTES and the decisions in docs/fieldbus.md):
+Rules (002 §3.1, §4 / 003 §5, and the decisions in docs/fieldbus.md and docs/fidelity.md):
 
 - A command fires on a 0→1 edge of its CMDFLAGS bit; if several rise in one update the lowest bit
   wins. A rising FASTSTOP is never lost: it is executed even when a lower bit rises with it.

@@ -15,11 +15,12 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
-from collections.abc import Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field, replace
 from typing import Any, TypeVar
 
 from pymodbus.client import AsyncModbusTcpClient
+from pymodbus.exceptions import ModbusException
 
 from ..protocol import GState, Status, SystemFlag
 from .image import INPUT_REGISTERS, CmdFlag, InputImage, OutputImage, force_scale
@@ -43,6 +44,14 @@ class FieldbusError(Exception):
         self.status: Status | int | None = image.status_code if image is not None else None
 
 
+class FieldbusConnectionError(ConnectionError):
+    """No usable Modbus/TCP connection: refused, lost, or no reply within the timeout.
+
+    Raised instead of pymodbus's own exceptions (``ModbusIOException``, ``ConnectionException``), so
+    callers handle one ``ConnectionError`` for every way the bus can fail.
+    """
+
+
 class AsyncFieldbusGripper:
     """Modbus/TCP master for the WSG fieldbus interface (asyncio).
 
@@ -58,18 +67,52 @@ class AsyncFieldbusGripper:
         self.poll_interval = poll_interval
         self.outputs = OutputImage()
         self.inputs = InputImage()
+        self.where = "the Modbus/TCP server"   # open() names it: modbus-tcp://HOST:PORT
+        self.timeout: float | None = None      # per request, s (set by open())
+        self._answered = False                 # a request has succeeded: a later failure is a lost link
+
+    async def _call(self, request: Callable[[], Awaitable[T]]) -> T:
+        """Make and await one pymodbus request; a transport failure (raised when the request is made,
+        as pymodbus does on a closed connection, or while awaiting it) becomes
+        :class:`FieldbusConnectionError`."""
+        try:
+            reply = await request()
+        except ModbusException as exc:
+            raise FieldbusConnectionError(self._explain(exc)) from exc
+        self._answered = True
+        return reply
+
+    def _explain(self, exc: ModbusException) -> str:
+        """One line for a pymodbus failure: lost after replies, or never a Modbus reply at all."""
+        text = str(exc)
+        within = f" within {self.timeout:g} s" if self.timeout is not None else ""
+        if self._answered:
+            reason = f"no reply{within}" if "No response" in text else "closed by the peer"
+            return f"{self.where}: connection lost ({reason})"
+        if "No response" in text:
+            return f"{self.where}: no Modbus reply{within} (is this a Modbus/TCP server?)"
+        return f"{self.where}: {text.removeprefix('Modbus Error: ')}"
 
     @classmethod
     async def open(cls, host: str = "127.0.0.1", port: int = 502, *, model: str = "wsg50",
                    device_id: int = 1, timeout: float = 3.0, poll_interval: float = 0.002) -> AsyncFieldbusGripper:
-        """Connect to ``host:port`` (raises ConnectionError)."""
+        """Connect to ``host:port``; ``timeout`` in s per request.
+
+        Raises :class:`FieldbusConnectionError` (a ConnectionError) when the connection is refused or
+        the peer does not answer Modbus within ``timeout``.
+        """
         client = AsyncModbusTcpClient(host, port=port, timeout=timeout, retries=0)
         if not await client.connect():
             client.close()
-            raise ConnectionError(f"cannot connect to Modbus/TCP {host}:{port}")
+            raise FieldbusConnectionError(f"modbus-tcp://{host}:{port}: cannot connect, refused or no such host")
         self = cls(client, model, device_id, poll_interval)
+        self.where, self.timeout = f"modbus-tcp://{host}:{port}", timeout
         # Start from the gripper's current outputs, so opening never fires an edge.
-        rr = await client.read_holding_registers(0, count=4, device_id=device_id)
+        try:
+            rr = await self._call(lambda: client.read_holding_registers(0, count=4, device_id=device_id))
+        except BaseException:
+            client.close()
+            raise
         if not rr.isError():
             self.outputs = OutputImage.from_registers(list(rr.registers))
         return self
@@ -87,7 +130,8 @@ class AsyncFieldbusGripper:
     # --- one bus cycle -------------------------------------------------------------------------
     async def read(self) -> InputImage:
         """Read input registers 0..5."""
-        rr = await self.client.read_input_registers(0, count=INPUT_REGISTERS, device_id=self.device_id)
+        rr = await self._call(
+            lambda: self.client.read_input_registers(0, count=INPUT_REGISTERS, device_id=self.device_id))
         if rr.isError():
             raise FieldbusError(f"reading input registers failed: {rr}")
         self.inputs = InputImage.from_registers(list(rr.registers))
@@ -95,7 +139,7 @@ class AsyncFieldbusGripper:
 
     async def write(self, image: OutputImage) -> None:
         """Write holding registers 0..3."""
-        rr = await self.client.write_registers(0, image.registers(), device_id=self.device_id)
+        rr = await self._call(lambda: self.client.write_registers(0, image.registers(), device_id=self.device_id))
         if rr.isError():
             raise FieldbusError(f"writing holding registers failed: {rr}")
         self.outputs = image

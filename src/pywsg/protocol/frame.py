@@ -12,7 +12,7 @@ from .status import Status
 PREAMBLE = b"\xaa\xaa\xaa"
 HEADER_SIZE = 6  # preamble, ID, SIZE
 OVERHEAD = HEADER_SIZE + 2  # ... plus the checksum
-MAX_PAYLOAD = 1024  # SPEC-NOTES: the parser's hard cap on SIZE
+MAX_PAYLOAD = 1024  # the parser's hard cap on SIZE: 4x the largest payload (Loop, 256 bytes, 000 §3.1.1)
 _HEADER = struct.Struct("<3sBH")
 _STATUS = struct.Struct("<H")
 

@@ -2,7 +2,8 @@
 
 Each connection gets a device session (its auto-update subscriptions, its 07h disconnect
 announcement). The device lets one TCP session at a time hold the command interface; a further
-connection is accepted and every frame it sends is answered E_ACCESS_DENIED (SPEC-NOTES), so nobody
+connection is accepted and every frame it sends is answered E_ACCESS_DENIED (docs/fidelity.md, "A
+refused TCP client"; as after 07h, 000 §3.1.2), so nobody
 steals motion control silently; it stays refused even after the controlling client leaves (the *next*
 connection gets control). Closing the controlling connection without 07h raises FAST STOP unless that
 setting is off (device rule). Refused connections that stay silent are closed after a while.
