@@ -192,4 +192,6 @@ def test_can_virtual_bus_round_trip(sim_factory: Callable[..., SimThread]) -> No
         assert CATALOG[0x50].decode_reply(r.payload)[1]["type"]
     finally:
         bus.shutdown()
-    assert "inferred" in st.sim.grippers[0].can.address
+    sg = st.sim.grippers[0]
+    assert sg.can.address == f"can://{channel}?interface=virtual&request_id=0x1&reply_id=0x2"  # a client URL
+    assert f"gripper 0: CAN      {sg.can.address} (inferred mapping)" in sg.lines()
