@@ -48,15 +48,19 @@ def repeat(pattern: bytes, size: int = MIB) -> bytes:
 
 
 def process_cpu_ns(pid: int) -> int:
-    """CPU time (ns) all threads of ``pid`` have used so far (Linux schedstat: ns resolution,
-    unlike the 10 ms ticks of /proc/PID/stat)."""
-    total = 0
+    """CPU time (ns) all threads of ``pid`` have used so far: Linux schedstat (ns resolution, unlike
+    the 10 ms ticks of /proc/PID/stat), else psutil's user + system time."""
+    total, read = 0, False
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
             total += int((task / "schedstat").read_text().split()[0])
-        except (FileNotFoundError, ProcessLookupError):  # a thread that just ended
+            read = True
+        except (FileNotFoundError, ProcessLookupError):  # a thread that just ended, or no schedstat
             pass
-    return total
+    if read:
+        return total
+    t = psutil.Process(pid).cpu_times()
+    return int((t.user + t.system) * 1e9)
 
 
 class Waiter(threading.Thread):
