@@ -13,16 +13,33 @@ Attacks (issue "hostile input costs bounded CPU and memory"): random bytes (the 
 1 KiB headers ``AA AA AA 99 00 04`` repeated, from the controlling client and from a refused second
 client; headers with SIZE too large; complete frames with bad CRCs; valid Loop requests (legitimate
 load, for scale); UDP datagrams of 65,507 bytes of forged headers; 50 requests in one datagram; and
-the reply loop of ``wsg sim --count 2`` (datagrams exchanged in 1 s after one 50h).
+the reply loop of ``wsg sim --count 2`` (datagrams exchanged in 1 s after one 50h); the self-loop of
+``--udp-reply-port 0`` (one datagram whose forged source is the sim's own port; forging it needs root:
+skipped otherwise).
 
-    .venv/bin/python benchmarks/bench_abuse.py [--mib 1] [--only NAME,...]
+Then the other interfaces, against one ``wsg sim --host 0.0.0.0`` with Modbus/TCP and the web
+interface (so the web rules for a non-loopback bind apply; the password is read from its stderr), run
+with ``ulimit -n 1024``: 1,100 idle connections each to the Modbus/TCP and web ports (connections the
+sim kept, whether the command port still answers); a 128 MiB chunked body to /api/settings and 4 x
+256 MiB chunked bodies to POST /login without a session (bytes the sim took, its answer, its peak RSS
+growth); 1,001 cookieless GETs of /static/style.css while a user is logged in (is the user still
+logged in); and pipelined Modbus requests, 3 and 1,000 in one TCP write (answers received).
+
+    .venv/bin/python benchmarks/bench_abuse.py [--mib 1] [--only NAME,...] [--sim-path DIR]
+
+``--sim-path DIR``: run the ``wsg sim`` processes from the pywsg package in DIR (e.g. an older
+checkout's ``src``), to measure "before" figures with this script.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
+import resource
+import select
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -36,6 +53,26 @@ from pywsg.protocol import Frame, FrameParser, Status
 
 MIB = 1 << 20
 PY = sys.executable
+SIM = [PY, "-c", "from pywsg.cli.main import main; main()", "sim"]
+SIM_ENV: dict[str, str] | None = None  # --sim-path: the environment of every wsg sim process
+
+
+def peak_reset(pid: int) -> None:
+    """Reset a process's peak RSS (VmHWM) where the kernel allows it."""
+    try:
+        with open(f"/proc/{pid}/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        pass
+
+
+def peak(pid: int) -> int:
+    """Peak RSS (bytes) of ``pid`` since :func:`peak_reset`."""
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    return 0
 
 
 class Sim:
@@ -49,8 +86,8 @@ class Sim:
         args = ["sim", "--tcp-port", str(self.tcp), "--udp-port", str(self.udp), "--udp-reply-port",
                 str(reply if reply_port is not None else 0), "--serial", "off", "--web-port", "0",
                 "--count", str(count), "--no-uvloop"]
-        self.proc = subprocess.Popen([PY, "-c", "from pywsg.cli.main import main; main()", *args],
-                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        self.proc = subprocess.Popen([*SIM, *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                                     text=True, env=SIM_ENV)
         assert self.proc.stdout is not None
         for _ in range(2 * count):
             if not self.proc.stdout.readline():
@@ -151,19 +188,25 @@ def tcp_attack(sim: Sim, blob: bytes, second: bool = False) -> int:
 
 
 def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
+    """Send ``datagrams``, each followed by a Loop probe whose answer is awaited (resent each second),
+    so that none is dropped unread by a full socket buffer. Returns the answers other than the probes'."""
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
     s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
-    got = 0
-    for d in datagrams:
-        s.sendto(d, ("127.0.0.1", sim.udp))
     s.settimeout(1.0)
-    try:
+    got = 0
+    for i, d in enumerate(datagrams):
+        s.sendto(d, ("127.0.0.1", sim.udp))
+        probe = b"\xfe" + i.to_bytes(4, "little")
+        answer = Frame.reply(0x06, Status.E_SUCCESS, probe).encode()
         while True:
-            s.recvfrom(65536)
-            got += 1
-    except TimeoutError:
-        pass
+            s.sendto(Frame(0x06, probe).encode(), ("127.0.0.1", sim.udp))
+            try:
+                while (data := s.recvfrom(65536)[0]) != answer:
+                    got += not data.startswith(b"\xaa\xaa\xaa\x06\x07\x00\x00\x00\xfe")  # an earlier probe's
+                break
+            except TimeoutError:
+                continue
     s.close()
     return got
 
@@ -196,9 +239,9 @@ def reply_loop() -> None:
     """`wsg sim --count 2`, listen P, reply to P+1 (gripper 1's port): one 50h, count the exchange."""
     probe = free_base(3)
     sim = subprocess.Popen(
-        [PY, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", "0", "--udp-port", str(probe),
-         "--udp-reply-port", str(probe + 1), "--serial", "off", "--web-port", "0", "--count", "2", "--no-uvloop"],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        [*SIM, "--tcp-port", "0", "--udp-port", str(probe), "--udp-reply-port", str(probe + 1), "--serial", "off",
+         "--web-port", "0", "--count", "2", "--no-uvloop"],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=SIM_ENV)
     try:
         assert sim.stdout is not None
         for _ in range(2):
@@ -218,11 +261,298 @@ def reply_loop() -> None:
         sim.wait(10)
 
 
+def _udp_packet(port: int, payload: bytes) -> bytes:
+    """An IPv4 + UDP packet 127.0.0.1:port -> 127.0.0.1:port (UDP checksum 0: none, allowed on IPv4)."""
+    udp = struct.pack(">HHHH", port, port, 8 + len(payload), 0) + payload
+    lo = socket.inet_aton("127.0.0.1")
+    ip = struct.pack(">BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, socket.IPPROTO_UDP, 0, lo, lo)
+    return ip + udp  # the kernel fills in the IP checksum for IP_HDRINCL
+
+
+def self_loop() -> None:
+    """``--udp-reply-port 0``: one Loop request whose (forged) source is the sim's own UDP port."""
+    name = "UDP --udp-reply-port 0 self-loop: CPU s in 1 s"
+    try:
+        raw = socket.socket(socket.AF_INET, socket.SOCK_RAW, socket.IPPROTO_RAW)
+    except PermissionError:
+        print(f"{name:44s} skipped (forging a source port needs root)", flush=True)
+        return
+    sim = Sim()
+    try:
+        time.sleep(0.2)
+        cpu0 = sim.cpu()
+        raw.sendto(_udp_packet(sim.udp, Frame(0x06, b"loop").encode()), ("127.0.0.1", 0))
+        time.sleep(1.0)
+        print(f"{name:44s} {sim.cpu() - cpu0:8.3f}", flush=True)
+    finally:
+        raw.close()
+        sim.close()
+
+
+# -- Modbus/TCP and the web interface ------------------------------------------------------------
+
+def _nofile(n: int) -> None:
+    """In the sim's process before exec: ``ulimit -n n`` (the common default of 1024)."""
+    resource.setrlimit(resource.RLIMIT_NOFILE, (n, n))
+
+
+class WebSim:
+    """``wsg sim --host 0.0.0.0`` with TCP, Modbus/TCP and web, under ``ulimit -n 1024``."""
+
+    def __init__(self) -> None:
+        self.base = free_base(3)
+        self.tcp, self.modbus, self.web = self.base, self.base + 1, self.base + 2
+        self.proc = subprocess.Popen(
+            [*SIM, "--host", "0.0.0.0", "--tcp-port", str(self.tcp), "--udp-port", "0", "--serial", "off",
+             "--modbus-port", str(self.modbus), "--web-port", str(self.web), "--no-uvloop"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=SIM_ENV,
+            preexec_fn=lambda: _nofile(1024))
+        assert self.proc.stdout is not None and self.proc.stderr is not None
+        self.password = ""
+        for _ in range(10):  # one line per interface; the web interface's comes last
+            line = self.proc.stdout.readline()
+            if not line:
+                raise RuntimeError("wsg sim did not start")
+            if str(self.web) in line:
+                break
+        line = self.proc.stderr.readline()  # "wsg web interface on HOST:PORT: password XYZ"
+        m = re.search(r"password (\S+)", line)
+        self.password = m.group(1) if m else ""
+        threading.Thread(target=self.proc.stderr.read, daemon=True).start()  # keep draining it
+        self.ps = psutil.Process(self.proc.pid)
+
+    def cpu(self) -> float:
+        t = self.ps.cpu_times()
+        return float(t.user + t.system)
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(10)
+
+
+def _open_now(socks: list[socket.socket]) -> int:
+    n = 0
+    for s in socks:
+        s.setblocking(False)
+        try:
+            if s.recv(1) != b"":
+                n += 1
+        except BlockingIOError:
+            n += 1
+        except OSError:
+            pass
+    return n
+
+
+def _kept(socks: list[socket.socket]) -> int:
+    """Connections still open (a refused one reads EOF or a reset), once the count stops changing:
+    a loaded sim may still be working through its accept queue (at most 10 s)."""
+    last = -1
+    for _ in range(20):
+        time.sleep(0.5)
+        n = _open_now(socks)
+        if n == last:
+            return n
+        last = n
+    return last
+
+
+def _command_port_ms(port: int) -> str:
+    """A Loop request's round trip on the command port (ms), or why it failed."""
+    try:
+        t0 = time.perf_counter()
+        with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+            s.sendall(Frame(0x06, b"ok?").encode())
+            reply = s.recv(64)
+            s.sendall(Frame(0x07).encode())
+        return f"{(time.perf_counter() - t0) * 1e3:.1f} ms" if reply.endswith(b"ok?" + reply[-2:]) else "bad"
+    except OSError as exc:
+        return type(exc).__name__
+
+
+def idle_flood(sim: WebSim, port: int, n: int = 1100) -> str:
+    """Open ``n`` idle connections to ``port``; returns the row's figures."""
+    cpu0, rss0 = sim.cpu(), sim.ps.memory_info().rss
+    socks: list[socket.socket] = []
+    refused = 0
+    for _ in range(n):
+        try:
+            socks.append(socket.create_connection(("127.0.0.1", port), timeout=2))
+        except OSError:
+            refused += 1
+    kept = _kept(socks)
+    cmd = _command_port_ms(sim.tcp)
+    rss = sim.ps.memory_info().rss - rss0
+    cpu = sim.cpu() - cpu0
+    for s in socks:
+        s.close()
+    time.sleep(0.5)
+    return (f"kept {kept} of {n} (connect failed: {refused}), command port: {cmd}, "
+            f"CPU {cpu:.2f} s, RSS +{rss / 1e6:.1f} MB")
+
+
+def chunked(port: int, path: str, headers: dict[str, str], total: int) -> tuple[int, str]:
+    """POST ``total`` bytes as a chunked body until the sim answers or stops reading (bytes sent,
+    status line). Never holds more than one 64 KiB chunk."""
+    chunk = b"x" * 65536
+    s = socket.create_connection(("127.0.0.1", port), timeout=5)
+    head = "".join(f"{k}: {v}\r\n" for k, v in headers.items())
+    s.sendall(f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nTransfer-Encoding: chunked\r\n{head}\r\n"
+              .encode())
+    sent = 0
+    s.settimeout(2.0)
+    try:
+        while sent < total:
+            if select.select([s], [], [], 0)[0]:
+                break
+            n = min(len(chunk), total - sent)
+            s.sendall(b"%x\r\n" % n + chunk[:n] + b"\r\n")
+            sent += n
+        else:
+            s.sendall(b"0\r\n\r\n")
+    except (TimeoutError, ConnectionError):
+        pass
+    s.settimeout(30.0)
+    answer = b""
+    try:
+        while b"\r\n" not in answer:
+            got = s.recv(4096)
+            if not got:
+                break
+            answer += got
+    except OSError:
+        pass
+    finally:
+        s.close()
+    return sent, answer.split(b"\r\n", 1)[0].decode(errors="replace") or "(closed)"
+
+
+def body_attack(sim: WebSim, path: str, headers: dict[str, str], total: int, times: int) -> str:
+    peak_reset(sim.proc.pid)
+    rss0, cpu0, t0 = sim.ps.memory_info().rss, sim.cpu(), time.perf_counter()
+    results = [chunked(sim.web, path, headers, total) for _ in range(times)]
+    grown = peak(sim.proc.pid) - rss0
+    took = max(sent for sent, _ in results)
+    return (f"{results[-1][1]!r}, sim took <= {took / MIB:.1f} MiB of {total / MIB:.0f}, "
+            f"peak RSS +{grown / 1e6:.0f} MB, CPU {sim.cpu() - cpu0:.2f} s, {time.perf_counter() - t0:.1f} s")
+
+
+def _http(port: int, method: str, path: str, cookie: str = "", body: bytes = b"",
+          ctype: str = "application/x-www-form-urlencoded") -> tuple[int, dict[str, str], bytes]:
+    """One HTTP/1.1 request on a new connection: (status, headers lower-cased, body)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        extra = (f"Cookie: {cookie}\r\n" if cookie else "") + \
+            (f"Content-Type: {ctype}\r\nContent-Length: {len(body)}\r\n" if method == "POST" else "")
+        s.sendall(f"{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n{extra}\r\n"
+                  .encode() + body)
+        data = b""
+        while chunk := s.recv(65536):
+            data += chunk
+    head, _, rest = data.partition(b"\r\n\r\n")
+    lines = head.decode(errors="replace").split("\r\n")
+    headers: dict[str, str] = {}
+    for line in lines[1:]:
+        k, _, v = line.partition(":")
+        if k.lower() == "set-cookie" and "wsg_session=" in v:
+            headers["cookie"] = v.strip().split(";")[0]
+        headers[k.lower()] = v.strip()
+    return int(lines[0].split()[1]), headers, rest
+
+
+def _login(sim: WebSim) -> str:
+    """Log in with the sim's password; returns the session cookie (``name=value``)."""
+    _, h, page = _http(sim.web, "GET", "/login")
+    cookie = h.get("cookie", "")
+    m = re.search(rb'name="csrf_token" value="([^"]+)"', page)
+    token = m.group(1).decode() if m else ""
+    from urllib.parse import urlencode
+    status, h2, _ = _http(sim.web, "POST", "/login", cookie,
+                          urlencode({"csrf_token": token, "password": sim.password, "next": "/"}).encode())
+    if status != 303:
+        raise RuntimeError(f"login failed: HTTP {status}")
+    return h2.get("cookie", cookie)
+
+
+def _api_headers(sim: WebSim) -> dict[str, str]:
+    """A logged-in session's cookie and CSRF token, for a JSON POST to /api."""
+    cookie = _login(sim)
+    _, _, body = _http(sim.web, "GET", "/api/csrf", cookie)
+    m = re.search(rb'"token"\s*:\s*"([^"]+)"', body)
+    return {"Cookie": cookie, "X-CSRF-Token": m.group(1).decode() if m else "",
+            "Content-Type": "application/json"}
+
+
+def session_flood(sim: WebSim, n: int = 1001) -> str:
+    cookie = _login(sim)
+    before = _http(sim.web, "GET", "/api/state", cookie)[0]
+    t0 = time.perf_counter()
+    for _ in range(n):
+        _http(sim.web, "GET", "/static/style.css")
+    dt = time.perf_counter() - t0
+    after = _http(sim.web, "GET", "/api/state", cookie)[0]
+    return (f"GET /api/state with the login cookie: {before} before, {after} after "
+            f"({'still logged in' if after == 200 else 'logged out'}); {n} GETs in {dt:.1f} s")
+
+
+def modbus_pipelined(sim: WebSim, n: int) -> str:
+    """``n`` FC3 requests (read 4 holding registers) in one TCP write: answers received in 2 s."""
+    data = b"".join(struct.pack(">HHHBBHH", i & 0xFFFF, 0, 6, 1, 3, 0, 4) for i in range(n))
+    cpu0, t0 = sim.cpu(), time.perf_counter()
+    got = b""
+    with socket.create_connection(("127.0.0.1", sim.modbus), timeout=2) as s:
+        s.sendall(data)
+        try:
+            while len(got) < 17 * n:  # 7 bytes MBAP + FC, count, 8 data bytes
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                got += chunk
+        except TimeoutError:
+            pass
+    dt = time.perf_counter() - t0
+    return f"{len(got) // 17} of {n} answered, {dt * 1e3:.0f} ms, CPU {sim.cpu() - cpu0:.2f} s"
+
+
+def interfaces(only: list[str]) -> None:
+    """The Modbus/TCP and web rows: one sim each, so one attack cannot spoil the next."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (max(soft, min(hard, 8192)), hard))  # our own 2,200 sockets
+    rows: list[tuple[str, Callable[[WebSim], str]]] = [
+        ("Modbus/TCP: 1,100 idle connections", lambda s: idle_flood(s, s.modbus)),
+        ("web: 1,100 idle connections", lambda s: idle_flood(s, s.web)),
+        ("web: 128 MiB chunked to /api/settings", lambda s: body_attack(
+            s, "/api/settings", _api_headers(s), 128 * MIB, 1)),
+        ("web: 4 x 256 MiB chunked to POST /login", lambda s: body_attack(
+            s, "/login", {"Content-Type": "application/x-www-form-urlencoded"}, 256 * MIB, 4)),
+        ("web: 1,001 cookieless GETs, user logged in", session_flood),
+        ("Modbus/TCP: 3 requests in one write", lambda s: modbus_pipelined(s, 3)),
+        ("Modbus/TCP: 1,000 requests in one write", lambda s: modbus_pipelined(s, 1000)),
+    ]
+    for name, attack in rows:
+        if only and not any(o in name for o in only):
+            continue
+        sim = WebSim()
+        try:
+            time.sleep(0.3)
+            try:
+                result = attack(sim)
+            except Exception as exc:  # a figure for the table, not a traceback
+                result = f"failed: {type(exc).__name__}: {exc}"
+            alive = "sim alive" if sim.proc.poll() is None else f"sim exited {sim.proc.returncode}"
+            print(f"{name:44s} {result}; {alive}", flush=True)
+        finally:
+            sim.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mib", type=float, default=1.0, help="bytes per attack, in MiB")
     ap.add_argument("--only", default="", help="comma-separated substrings of attack names")
+    ap.add_argument("--sim-path", default="", help="run wsg sim from the pywsg package in this directory")
     args = ap.parse_args()
+    global SIM_ENV
+    if args.sim_path:
+        SIM_ENV = {**os.environ, "PYTHONPATH": os.path.abspath(args.sim_path)}
     size = int(args.mib * MIB)
     forged = repeat(b"\xaa\xaa\xaa\x99\x00\x04", size)
     udp_blob = repeat(b"\xaa\xaa\xaa\x99\x00\x04", 65507)
@@ -249,6 +579,9 @@ def main() -> None:
             measure(name, sent, attack)
     if not only or any(o in "reply loop" for o in only):
         reply_loop()
+    if not only or any(o in "self-loop" for o in only):
+        self_loop()
+    interfaces(only)
 
 
 if __name__ == "__main__":

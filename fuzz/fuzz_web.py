@@ -1,4 +1,4 @@
-"""Fuzz the web interface's JSON bodies: every POST endpoint of /api and /api/sim.
+"""Fuzz the web interface's JSON bodies: the POST endpoints of /api and /api/sim that take a body.
 
     .venv/bin/python fuzz/fuzz_web.py -max_total_time=60            # atheris
     .venv/bin/python fuzz/fuzz_web.py --hypothesis --examples 2000  # without atheris
@@ -29,11 +29,12 @@ with instrumented(__name__):
     from pywsg.web.app import create_app
 
 ENDPOINTS = ("/api/move", "/api/grip", "/api/release", "/api/home", "/api/settings", "/api/stop",
-             "/api/sim/part", "/api/sim/block", "/api/sim/heat", "/api/sim/fault")
+             "/api/sim/part", "/api/sim/block", "/api/sim/heat", "/api/sim/fault",
+             "/api/tag", "/api/soft-limits", "/api/overdrive", "/api/jog")
 FIELDS = ("width", "speed", "force", "relative", "stop_on_block", "direction", "stiffness", "delta_c", "kind",
           "on", "crc_check", "fast_stop_on_disconnect", "homing_direction", "clamping_travel", "model",
           "default_acceleration", "default_force_limit", "serial_number", "finger1", "finger2", "script",
-          "auto_homing")
+          "auto_homing", "tag", "minus", "plus")
 
 _client: tuple[TestClient, dict[str, str]] | None = None
 
@@ -66,18 +67,37 @@ def test_one_input(data: bytes) -> None:
         raise AssertionError(f"after POST {path} {data[1:200]!r}: GET /api/state is {state.status_code}")
 
 
-# JSON bodies: objects with the endpoints' field names and values of every JSON type (integers within
-# the float range and shallow nesting: see fuzz/README.md for the open findings beyond that)
-_scalar = st.one_of(st.none(), st.booleans(), st.integers(-(10**300), 10**300), st.floats(),
+# JSON bodies: objects with the endpoints' field names and values of every JSON type, including
+# integers far beyond the float range (fuzz/README.md F4) and beyond Python's 4,300-digit int limit
+_huge = st.integers(309, 4300).flatmap(lambda n: st.sampled_from([int("9" * n), -(10 ** (n - 1))]))
+_scalar = st.one_of(st.none(), st.booleans(), st.integers(), st.integers(-(10**400), 10**400), _huge, st.floats(),
                     st.text(max_size=12), st.sampled_from(["wsg50", "fmf", "power", "current", "default", "ack"]))
 _json = st.recursive(_scalar, lambda inner: st.one_of(st.lists(inner, max_size=4),
                                                      st.dictionaries(st.text(max_size=8), inner, max_size=4)),
                      max_leaves=12)
-_body = st.one_of(
+_doc = st.one_of(
     st.dictionaries(st.sampled_from(FIELDS), _json, max_size=6),
     _json,
 ).map(lambda v: json.dumps(v).encode())
+
+
+def _nest(depth: int, arrays: bool, field: str | None) -> bytes:
+    """``depth`` nested arrays or objects (F3), bare or as the value of ``field``; 5,000 levels is 10 KB."""
+    inner = b"[" * depth + b"]" * depth if arrays else b'{"a":' * depth + b"1" + b"}" * depth
+    return inner if field is None else b'{"' + field.encode() + b'": ' + inner + b"}"
+
+
+_deep = st.builds(_nest, st.sampled_from([1000, 2500, 5000]) | st.integers(50, 6000), st.booleans(),
+                  st.none() | st.sampled_from(FIELDS))
+# digits as text (309 and more: past the float range; past 4,300 json.dumps refuses a Python int)
+_digits = st.builds(lambda field, n, sign: f'{{"{field}": {sign}{"9" * n}}}'.encode(),
+                    st.sampled_from(FIELDS), st.sampled_from([400, 4300, 5000]) | st.integers(309, 20000),
+                    st.sampled_from(["", "-"]))
+_body = st.one_of(_doc, _deep, _digits)
 inputs = st.builds(lambda i, body: bytes([i]) + body, st.integers(0, 255), _body)
+# only the inputs beyond the old bounds (findings F3, F4), to every endpoint: the test suite's regression run
+edge_inputs = st.builds(lambda i, body: bytes([i]) + body, st.integers(0, len(ENDPOINTS) - 1),
+                        st.one_of(_deep, _digits))
 
 
 if __name__ == "__main__":

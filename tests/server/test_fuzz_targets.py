@@ -62,6 +62,14 @@ def test_web_target_json_bodies() -> None:
 
 
 @pytest.mark.usefixtures("fuzz")
+def test_web_target_bodies_past_the_old_bounds() -> None:
+    """Deep nesting and integers of 309 to 20,000 digits to every endpoint (fuzz/README.md F3, F4).
+
+    The same run against the code before those fixes reports HTTP 500 for /api/settings."""
+    run("fuzz_web", 200, raw=False, inputs="edge_inputs")
+
+
+@pytest.mark.usefixtures("fuzz")
 def test_device_oracle_catches_a_broken_device(monkeypatch: pytest.MonkeyPatch) -> None:
     """The oracle is not vacuous: a device that answers garbage is a finding."""
     fd = target("fuzz_device")
