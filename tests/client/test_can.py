@@ -182,21 +182,7 @@ def test_a_bus_flooded_with_foreign_identifiers_is_ignored(can_sim: tuple[SimThr
     sent = [0]
 
     def flood() -> None:
-        """A saturated 500 kbit/s bus: ~4,000 frames/s (an 8-byte frame is ~125 bits on the wire);
-        the virtual bus has no bit rate, so the pace is set here, in bursts of 40 every 10 ms."""
-        i = 0
-        next_burst = time.monotonic()
-        while not stop.is_set():
-            for _ in range(13):
-                i += 1
-                flooder.send(can.Message(arbitration_id=0x100 + i % 0x600, data=b"\xaa\xaa\xaa" + bytes(5),
-                                         is_extended_id=False))
-                flooder.send(can.Message(arbitration_id=0x01, is_remote_frame=True, is_extended_id=False))
-                flooder.send(can.Message(arbitration_id=0x02, data=b"\xaa\xaa\xaa\x50\x00\x00",
-                                         is_extended_id=True))
-                sent[0] += 3
-            next_burst += 0.01
-            time.sleep(max(0.0, next_burst - time.monotonic()))
+        _flood(flooder, stop, sent, remote_id=0x01)  # remote frames on the sim's request identifier
 
     with Gripper(url, timeout=2) as g:
         quiet = _rate(g)
@@ -218,6 +204,25 @@ def test_a_bus_flooded_with_foreign_identifiers_is_ignored(can_sim: tuple[SimThr
     assert st.g.can.foreign > 0
     print(f"round trips/s quiet {quiet:.0f}, flooded {flooded:.0f}")
     assert flooded > quiet / 50, (quiet, flooded)  # generous: 2 shared cores, one thread floods flat out
+
+
+def _flood(bus: Any, stop: threading.Event, sent: list[int], remote_id: int) -> None:
+    """Flood ``bus`` until ``stop``: ~4,000 frames/s, as a saturated 500 kbit/s bus (an 8-byte frame is
+    ~125 bits on the wire). The virtual bus has no bit rate, so the pace is set here, in bursts of 39
+    every 10 ms: foreign identifiers carrying a preamble, remote frames on ``remote_id``, and extended
+    frames that look like a request. ``sent[0]`` counts the frames."""
+    i = 0
+    next_burst = time.monotonic()
+    while not stop.is_set():
+        for _ in range(13):
+            i += 1
+            bus.send(can.Message(arbitration_id=0x100 + i % 0x600, data=b"\xaa\xaa\xaa" + bytes(5),
+                                 is_extended_id=False))
+            bus.send(can.Message(arbitration_id=remote_id, is_remote_frame=True, is_extended_id=False))
+            bus.send(can.Message(arbitration_id=0x02, data=b"\xaa\xaa\xaa\x50\x00\x00", is_extended_id=True))
+            sent[0] += 3
+        next_burst += 0.01
+        time.sleep(max(0.0, next_burst - time.monotonic()))
 
 
 def _rate(g: Gripper, n: int = 30) -> float:
@@ -292,20 +297,7 @@ def test_async_a_bus_flooded_with_foreign_identifiers_is_ignored(can_sim: tuple[
     sent = [0]
 
     def flood() -> None:
-        """~4,000 frames/s, as a saturated 500 kbit/s bus (see the sync test above)."""
-        i = 0
-        next_burst = time.monotonic()
-        while not stop.is_set():
-            for _ in range(13):
-                i += 1
-                flooder.send(can.Message(arbitration_id=0x100 + i % 0x600, data=b"\xaa\xaa\xaa" + bytes(5),
-                                         is_extended_id=False))
-                flooder.send(can.Message(arbitration_id=0x02, is_remote_frame=True, is_extended_id=False))
-                flooder.send(can.Message(arbitration_id=0x02, data=b"\xaa\xaa\xaa\x50\x00\x00",
-                                         is_extended_id=True))
-                sent[0] += 3
-            next_burst += 0.01
-            time.sleep(max(0.0, next_burst - time.monotonic()))
+        _flood(flooder, stop, sent, remote_id=0x02)  # remote frames on the driver's reply identifier
 
     async def main() -> None:
         async with AsyncGripper(url, timeout=2) as g:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import ipaddress
 import re
 import struct
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
@@ -387,7 +387,6 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
                 direction: Direction | None = None) -> int:
     """Decode a capture, JSON-lines log, hex-dump or binary file and print it; returns the exit status
     (1 when any frame is bad, truncated or the file cannot be read)."""
-    import json
 
     import click
 
@@ -402,16 +401,7 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
                 for c in captured:
                     if c.decoded.command_id is not None and not c.decoded.error:
                         c.decoded = decode_bytes(c.decoded.raw, direction)[0]
-            if as_json:
-                click.echo(json.dumps([c.to_json() for c in captured], indent=2, ensure_ascii=False))
-            else:
-                for i, c in enumerate(captured):
-                    if i:
-                        click.echo()
-                    click.echo(c.header())
-                    click.echo("\n".join(c.decoded.lines()))
-                if not captured:
-                    click.echo("no WSG frames in the capture", err=True)
+            _print_framed(captured, as_json, "no WSG frames in the capture")
             decoded = [c.decoded for c in captured]
         else:
             data = bytes_from_file(path)
@@ -430,7 +420,7 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
     return 1 if any(d.error or d.checksum_ok is False for d in decoded) else 0
 
 
-def _print_framed(frames: list[LoggedFrame], as_json: bool, none: str) -> None:
+def _print_framed(frames: Sequence[LoggedFrame | CapturedFrame], as_json: bool, none: str) -> None:
     """Print frames with a header line each (time, direction), or as one JSON list."""
     import json
 
