@@ -25,6 +25,8 @@ def test_demo_runs_gripping_cycles_against_the_virtual_gripper() -> None:
     grips = [s for s in steps if s["step"].startswith("grip")]
     assert len(grips) == 2 and all(s["state"] == "HOLDING" for s in grips)
     assert all(abs(s["width"] - 30.0) < 0.5 and s["force"] > 0 for s in grips)
+    holds = [s for s in steps if s["step"].startswith("hold")]
+    assert len(holds) == 2 and all(s["state"] == "HOLDING" and s["seconds"] >= 0.1 for s in holds)  # --hold 0.1
     releases = [s for s in steps if s["step"].startswith("release")]
     assert all(s["state"] == "IDLE" and abs(s["width"] - 60.0) < 0.01 for s in releases)
     stats = next(e for e in events if e["event"] == "statistics")

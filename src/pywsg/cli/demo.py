@@ -113,6 +113,12 @@ async def _demo(*, cycles: int, model: str, host: str, tcp_port: int, web_port: 
         return ok
 
 
+async def _after(seconds: float, coro: Any) -> Any:
+    """Await ``coro`` after ``seconds`` s (a step whose printed time includes the wait)."""
+    await asyncio.sleep(seconds)
+    return await coro
+
+
 async def _cycles(url: str, cycles: int, part: float, open_width: float, speed: float, force: float,
                   hold: float, as_json: bool, faults: Any) -> bool:
     """The gripping cycle over TCP. ``faults`` is the virtual gripper's fault-injection API: it plays
@@ -139,8 +145,7 @@ async def _cycles(url: str, cycles: int, part: float, open_width: float, speed: 
                 _say(as_json, "part", f"  (a {part:g} mm part is placed between the fingers)", width=part)
                 await step(f"pre-position to {open_width:g} mm", g.move(open_width, speed))
                 await step(f"grip {part:g} mm part at {force:g} N", g.grip(part, speed, force=force))
-                await asyncio.sleep(hold)
-                await step(f"hold {hold:g} s", g.gripper_state())
+                await step(f"hold {hold:g} s", _after(hold, g.gripper_state()))
                 await step(f"release to {open_width:g} mm", g.release(open_width, speed))
                 faults.remove_part()
                 _say(as_json, "part", "  (the part is taken away)")
