@@ -125,14 +125,16 @@ async def _check_force(g: Any, lim: Any, force: float) -> None:
 
 
 async def _check_motion(g: Any, width: float | None, speed: float, *, relative: bool = False,
-                        force: float | None = None, what: str = "the target") -> None:
-    """Warn about every value of a motion command the gripper will clamp (one 53h request)."""
+                        force: float | None = None, what: str = "the target") -> Any:
+    """Warn about every value of a motion command the gripper will clamp (one 53h request); returns
+    the limits read."""
     lim = await g.limits()
     if width is not None:
         await _check_stroke(g, lim, width, relative, what)
     _check_speed(lim, speed)
     if force is not None:
         await _check_force(g, lim, force)
+    return lim
 
 
 async def _check_acceleration(g: Any, acceleration: float) -> None:
@@ -211,8 +213,8 @@ def release(ctx: click.Context, /, width: float | None, speed: float, wait: bool
             **kw: Any) -> None:
     """Release a gripped part by opening to WIDTH mm (26h Release Part; default: fully open, the stroke)."""
     async def act(g: Any) -> dict[str, Any]:
-        await _check_motion(g, width, speed)
-        w = width if width is not None else (await g.limits()).stroke
+        lim = await _check_motion(g, width, speed)
+        w = width if width is not None else lim.stroke
         await g.release(w, speed, wait=wait)
         return {"width": await _readback(g)} if wait else {"pending": True}
     _done(ctx, "release", run(ctx, kw, act, motion_timeout))

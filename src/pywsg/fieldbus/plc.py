@@ -595,7 +595,6 @@ class GrippingCycle:
                       f"  [{_gstate_name(stw1)}, {_status_name(rcv.ERROR_CODE)}]")
         return self.send
 
-
     def fast_stop_hint(self, receive: InputImage | WsgReceive) -> str | None:
         """Why the cycle may wait for ever: FAST STOP set while it runs the listing exactly, else None."""
         rcv = receive if isinstance(receive, WsgReceive) else WsgReceive.from_bytes(receive.pack())
