@@ -88,14 +88,12 @@ def is_jsonl(path: str | Path) -> bool:
     return head.startswith(b"{")
 
 
-def frames_from_jsonl(path: str | Path, direction: Direction | None = None) -> list[LoggedFrame]:
-    """The frames of a JSON-lines log: each line ``{"time": s, "direction": "tx"|"rx", "hex": "AA AA ..."}``
-    (more keys, the decoded fields, are ignored and decoded afresh). ``tx`` lines decode as requests,
-    ``rx`` as replies, unless ``direction`` says otherwise. Lines of other events are skipped.
-    Raises ValueError naming the line when one is not JSON or its hex is bad."""
+def jsonl_records(path: str | Path) -> Iterator[tuple[float, str, bytes]]:
+    """(time s, ``"tx"``/``"rx"``, frame bytes) of each frame line of a JSON-lines log, in order: each
+    line ``{"time": s, "direction": "tx"|"rx", "hex": "AA AA ..."}`` (other keys ignored; lines of
+    other events skipped). Raises ValueError naming the line when one is not JSON or its hex is bad."""
     import json
 
-    out: list[LoggedFrame] = []
     for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
             continue
@@ -109,9 +107,16 @@ def frames_from_jsonl(path: str | Path, direction: Direction | None = None) -> l
             raw = parse_hex(str(obj["hex"]))
         except ValueError as exc:
             raise ValueError(f"line {n}: {exc}") from None
-        way: Direction = direction or ("request" if obj["direction"] == "tx" else "reply")
-        when = float(obj.get("time") or 0.0)
-        out.extend(LoggedFrame(when, obj["direction"], d) for d in decode_bytes(raw, way))
+        yield float(obj.get("time") or 0.0), obj["direction"], raw
+
+
+def frames_from_jsonl(path: str | Path, direction: Direction | None = None) -> list[LoggedFrame]:
+    """The frames of a JSON-lines log (:func:`jsonl_records`), decoded afresh: ``tx`` lines as
+    requests, ``rx`` as replies, unless ``direction`` says otherwise."""
+    out: list[LoggedFrame] = []
+    for when, way, raw in jsonl_records(path):
+        as_: Direction = direction or ("request" if way == "tx" else "reply")
+        out.extend(LoggedFrame(when, way, d) for d in decode_bytes(raw, as_))
     return out
 
 

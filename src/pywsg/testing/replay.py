@@ -12,7 +12,6 @@ their own units: mm, mm/s, N, °C). Timing is not compared.
 
 from __future__ import annotations
 
-import json
 import math
 import socket
 import time
@@ -23,7 +22,7 @@ from typing import Any
 
 from ..client.url import parse_url
 from ..protocol import Command, Frame, FrameParser
-from ..protocol.decode import DecodedFrame, decode_bytes, decode_frame, parse_hex
+from ..protocol.decode import DecodedFrame, decode_bytes, decode_frame
 
 __all__ = ["Difference", "ReplayReport", "Step", "load_steps", "replay"]
 
@@ -67,7 +66,7 @@ class ReplayReport:
 
 def _records(path: Path) -> Iterable[tuple[str, bytes]]:
     """(``tx``/``rx``, frame bytes) in recorded order."""
-    from ..cli.capture import frames_from_capture, is_capture
+    from ..cli.capture import frames_from_capture, is_capture, jsonl_records
 
     if is_capture(path):
         for c in frames_from_capture(path):
@@ -76,15 +75,11 @@ def _records(path: Path) -> Iterable[tuple[str, bytes]]:
                 continue
             yield ("tx" if d.direction == "request" else "rx"), d.raw
         return
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            obj = json.loads(line)
-        except ValueError:
-            raise ValueError(f"{path}:{n}: not a JSON line (give a pcap/pcapng file or JSON lines)") from None
-        if isinstance(obj, dict) and obj.get("hex") and obj.get("direction") in ("tx", "rx"):
-            yield obj["direction"], parse_hex(obj["hex"])
+    try:
+        for _, direction, raw in jsonl_records(path):
+            yield direction, raw
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}: not a JSON lines log (give a pcap/pcapng file or JSON lines)") from None
 
 
 def load_steps(path: str | Path) -> list[Step]:
