@@ -13,8 +13,9 @@ from typing import Any
 
 import click
 
+from .runner import EXIT_CONNECTION
+
 DEFAULT_SIM = "http://127.0.0.1:8080"
-EXIT_CONNECTION = 3   # as everywhere in `wsg` (cli/runner.py)
 
 
 class Unreachable(click.ClickException):
