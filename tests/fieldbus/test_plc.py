@@ -57,7 +57,7 @@ async def test_plc_demo_recovers_from_an_injected_fast_stop(sim: SimServer) -> N
     assert rc == 0, out
     assert "injected fault: FASTSTOP" in out
     assert "-> -1" in out and "step -1 ->  0" in out          # error state, STOP/ACK, re-homing
-    assert "done: 3 cycle(s)" in out and "1 error recovery(ies)" in out
+    assert "done: 3 cycle(s)" in out and ", 1 error recovery(ies)" in out
     snap = sim.grippers[0].gripper.snapshot()
     assert not snap.fast_stop and snap.referenced
 

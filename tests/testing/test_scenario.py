@@ -110,7 +110,7 @@ def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     sim = sim_proc("--scenario", str(DOCS / "lost-part.toml"), modbus=True)
     r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "3", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
+    assert ", 1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
 
 
