@@ -329,6 +329,7 @@ class SimServer:
             sg.modbus = await _serve_optional(
                 "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
                 option="--modbus-port", max_connections=opts.limits.modbus_connections,
+                idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
@@ -338,6 +339,7 @@ class SimServer:
                 "fieldbus": getattr(sg.modbus, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
+                "idle_timeout": opts.limits.idle_timeout,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
