@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import re
 from pathlib import Path
 from typing import Any
@@ -164,8 +163,9 @@ def sim(
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
     if level:
-        logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
-        logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
+        from .main import configure_logging
+
+        configure_logging(min(level, 2))
 
     web = web_port
     if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
