@@ -70,7 +70,8 @@ def test_wrong_ident_number_is_refused_with_prm_fault(pb_sim: SimThread) -> None
     with dp_master(ad.path) as (master, desc):
         desc.setPrmTelegram.identNumber = 0x1234
         start(master, desc)
-        _spin(master, desc, 0.5)
+        run_until(master, desc, lambda d: ad.slave.prm_fault, "the slave to refuse Set_Prm")
+        _spin(master, desc, 0.2)
         assert not desc.isConnected()
         assert ad.slave.state is DpState.WAIT_PRM and ad.slave.prm_fault
         diag = _slave_diag(master)
@@ -84,12 +85,14 @@ def test_wrong_configuration_is_refused_with_cfg_fault(pb_sim: SimThread) -> Non
     with dp_master(ad.path) as (master, desc):
         desc.setCfgDataElements([pyprofibus.dp.DpCfgDataElement(0x97), pyprofibus.dp.DpCfgDataElement(0xA7)])
         start(master, desc)
-        _spin(master, desc, 0.5)
+        run_until(master, desc, lambda d: ad.slave.cfg_fault, "the slave to refuse Chk_Cfg")
+        _spin(master, desc, 0.2)
         assert not desc.isConnected()
-        assert ad.slave.cfg_fault and ad.slave.state is DpState.WAIT_PRM
-        assert "A7 9B".lower() in ad.slave.last_reason
+        # The master starts over (Set_Prm again): Cfg_Fault stays until a Chk_Cfg matches.
+        assert ad.slave.cfg_fault and ad.slave.state is not DpState.DATA_EXCH
+        assert "the GSD module is a7 9b" in ad.slave.last_reason
         diag = _slave_diag(master)
-    assert diag.cfgFault() and not diag.prmFault() and diag.prmReq()
+    assert diag.cfgFault() and not diag.prmFault() and diag.notReady() and not diag.isReadyDataEx()
 
 
 def test_watchdog_expires_when_the_master_stops(pb_sim: SimThread) -> None:

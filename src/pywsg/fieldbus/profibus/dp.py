@@ -312,7 +312,7 @@ class DpSlave:
             if self.state is not DpState.WAIT_PRM:
                 self._leave(fault, safe=self.state is DpState.DATA_EXCH)
             return fdl.SHORT_ACK
-        self.prm_fault = self.cfg_fault = self.not_supported = False
+        self.prm_fault = self.not_supported = False   # Cfg_Fault stays until the next Chk_Cfg
         if self.state is DpState.DATA_EXCH:
             self._leave("new Set_Prm", safe=False)
         self.master = tel.sa
