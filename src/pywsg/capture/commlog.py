@@ -53,7 +53,8 @@ class LogEntry:
         return format_line(self, hex_width)
 
 
-def _clock(t: float) -> str:
+def wall_clock(t: float) -> str:
+    """Unix seconds as local time of day with microseconds, ``19:44:34.052109`` (every log's style)."""
     return _dt.datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")
 
 
@@ -75,7 +76,7 @@ def format_line(entry: LogEntry, hex_width: int = 0) -> str:
     d = entry.decoded
     cid = f"{d.command_id:02X}h" if d.command_id is not None else "--"
     hexed = d.raw.hex(" ").upper()
-    return (f"{_clock(entry.time)} {_ARROW[entry.direction]} {cid} {d.command:<24} "
+    return (f"{wall_clock(entry.time)} {_ARROW[entry.direction]} {cid} {d.command:<24} "
             f"{hexed:<{hex_width}}  {summary(d)}").rstrip()
 
 
@@ -125,7 +126,7 @@ class CommLog:
         t = time.time() if when is None else when
         with self._lock:
             if self.text is not None:
-                self.text.write(f"{_clock(t)} {_ARROW[direction]} -- {message}\n")
+                self.text.write(f"{wall_clock(t)} {_ARROW[direction]} -- {message}\n")
                 self.text.flush()
             if self.jsonl is not None:
                 self.jsonl.write(json.dumps({"time": round(t, 6), "direction": direction, "error": message}) + "\n")
