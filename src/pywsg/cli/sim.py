@@ -40,6 +40,15 @@ def _serial(value: str) -> str | None:
     return None if value.lower() in ("0", "off", "none", "") else value
 
 
+def _scaled_clock(k: float) -> Any:
+    """A :class:`~pywsg.device.ScaledClock` for ``--time-scale K`` (None: real time)."""
+    if k == 1:
+        return None
+    from ..device.clock import ScaledClock
+
+    return ScaledClock(k)
+
+
 def _run(coro: Any, use_uvloop: bool | None) -> Any:
     """Run with uvloop when asked (or by default when installed), else stock asyncio."""
     if use_uvloop is not False:
@@ -114,6 +123,10 @@ def _json_line(line: str) -> str:
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
+@click.option("--time-scale", "time_scale", type=click.FloatRange(min=0, min_open=True, max=1e6), default=1.0,
+              show_default=True, metavar="K",
+              help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
+              "periods and scenarios (the network and clients' timeouts are not scaled).")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
 @click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
@@ -152,6 +165,7 @@ def sim(
     idle_timeout: float,
     settings_file: Path | None,
     count: int,
+    time_scale: float,
     use_uvloop: bool | None,
     part_width: float | None,
     block_width: float | None,
@@ -218,6 +232,7 @@ def sim(
         web_port=web,
         settings=settings_file,
         count=count,
+        clock=_scaled_clock(time_scale),
         limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
                       idle_timeout=idle_timeout),
         web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
