@@ -164,6 +164,9 @@ class ProfibusAdapter:
         if self._closed:
             return
         self._closed = True
+        detach = getattr(self.controller, "detach_bus", None)
+        if detach is not None:
+            detach(self)
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
