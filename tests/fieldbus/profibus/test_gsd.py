@@ -35,7 +35,7 @@ def test_the_slave_reads_the_same_file(gsd: object) -> None:
     for rate in f.baud_rates:
         assert gsd.getMaxTSDR(rate) == f.max_tsdr[rate]  # type: ignore[attr-defined]
         check_baudrate(rate)
-    with pytest.raises(ValueError, match="not one WEIS5555.gsd declares"):
+    with pytest.raises(ValueError, match=r"not one WEIS5555\.gsd declares"):
         check_baudrate(1_500_000)
 
 
@@ -46,7 +46,8 @@ def test_unit_diag_bits_name_each_error_flag_of_the_manual() -> None:
     text = gsd_text()
     for flag in DIAGNOSIS_FLAGS:
         bit = int(flag).bit_length() - 1
-        assert f"UnitDiagBit({8 + bit})" in text and flag.name in text.split(f"UnitDiagBit({8 + bit})")[1].split("\n")[0]
+        key = f"UnitDiagBit({8 + bit})"
+        assert key in text and flag.name in text.split(key)[1].split("\n")[0]
 
 
 def test_a_gsd_without_module_is_refused() -> None:

@@ -199,6 +199,20 @@ class DpSlave:
             if self.on_address_change is not None:
                 self.on_address_change(new)
 
+    def set_address(self, address: int) -> None:
+        """Change the station address from outside the bus (Settings → Command Interface). A master
+        in Data_Exch loses the slave: fail-safe, Wait_Prm, unlocked."""
+        if not 0 <= address <= MAX_STATION_ADDRESS:
+            raise ValueError(f"PROFIBUS station address is 0..{MAX_STATION_ADDRESS}, got {address}")
+        if address == self.address:
+            return
+        if self.state is not DpState.WAIT_PRM:
+            self._leave(f"station address changed to {address}", safe=self.state is DpState.DATA_EXCH)
+        self.master = None
+        self.address = address
+        self._fcb.clear()
+        self._last.clear()
+
     def check_watchdog(self, now: float) -> bool:
         """Expire the watchdog if its time has come; True when it did."""
         if self.watchdog_deadline is None or now < self.watchdog_deadline:
