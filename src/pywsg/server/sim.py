@@ -138,6 +138,17 @@ class SimGripper:
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
+    fieldbus: Any = None   # the one FieldbusController every bus of this gripper feeds
+
+    def fieldbus_controller(self) -> Any:
+        """The gripper's one :class:`~pywsg.fieldbus.controller.FieldbusController`, made when its
+        first bus starts; Modbus/TCP, PROFINET and PROFIBUS adapters all receive this one."""
+        if self.fieldbus is None:
+            from ..fieldbus.controller import FieldbusController
+
+            device: Any = self.gripper   # a VirtualGripper (GripperLike is what the transports need)
+            self.fieldbus = FieldbusController(device)
+        return self.fieldbus
 
     @property
     def tcp_port(self) -> int | None:
@@ -310,15 +321,15 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                max_connections=opts.limits.modbus_connections,
+                "pywsg.fieldbus.modbus.server", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                controller=sg.fieldbus_controller(), max_connections=opts.limits.modbus_connections,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
                 "sim_info": sg.info(),
-                "fieldbus": getattr(sg.modbus, "controller", None),
+                "fieldbus": sg.fieldbus,
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
             }
@@ -353,6 +364,10 @@ class SimServer:
                     continue
                 with contextlib.suppress(Exception):
                     await part.close()
+            if sg.fieldbus is not None:   # after its buses: none feeds it any more
+                with contextlib.suppress(Exception):
+                    sg.fieldbus.close()
+                sg.fieldbus = None
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)
