@@ -353,20 +353,22 @@ class ModbusHandle:
 
 
 async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD_PORT,
-                       controller: FieldbusController | None = None, max_connections: int = 32) -> ModbusHandle:
+                       controller: FieldbusController | None = None, max_connections: int = 32,
+                       idle_timeout: float | None = None) -> ModbusHandle:
     """Serve ``gripper``'s fieldbus interface over Modbus/TCP on ``host:port`` (port 0: any free port).
 
     ``controller``: the gripper's :class:`FieldbusController` when other buses share it (the sim makes
     one per gripper); without one, a controller of its own is made and closed with the server.
     Runs on the current event loop; the gripper must be polled by a runner (e.g.
     ``pywsg.server.DeviceRunner``) so motions finish. Raises OSError if the port cannot be bound.
-    At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``).
+    At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``); one
+    sending nothing for ``idle_timeout`` s is closed (None: never).
     """
     owns = controller is None
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
-    cap_modbus_server(server, max_connections)
+    cap_modbus_server(server, max_connections, idle_timeout)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
         if owns:
