@@ -124,7 +124,7 @@ async def sim() -> AsyncIterator[SimServer]:
 @pytest.mark.realtime
 async def test_the_sim_makes_one_controller_that_the_modbus_server_and_web_share(sim: SimServer) -> None:
     sg = sim.grippers[0]
-    ctl = sg.fieldbus
+    ctl = sg.controller
     assert ctl is not None and sg.fieldbus_controller() is ctl    # one per gripper, made once
     assert sg.modbus.controller is ctl and ctl.buses == (sg.modbus,)
     assert sg.web.app.state.ctx.fieldbus is ctl
@@ -168,7 +168,7 @@ async def test_the_plc_side_runs_over_an_exchange_opened_by_url(sim: SimServer) 
         assert img.status == Status.E_SUCCESS and img.sysstate & SF.SF_REFERENCED
         img = await plc.move(40.0, 100.0)
         assert abs(img.width_mm - 40.0) < 0.05
-        assert sim.grippers[0].fieldbus.output_image.width == 4000   # the bytes arrived in image order
+        assert sim.grippers[0].controller.output_image.width == 4000   # the bytes arrived in image order
     finally:
         await plc.close()
 

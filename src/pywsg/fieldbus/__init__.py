@@ -7,8 +7,8 @@
 - :mod:`.exchange` — :class:`~.exchange.ImageExchange`, what a master on the PLC's side implements,
   and ``open_exchange(url)``.
 - :mod:`.plc` — :class:`FieldbusGripper`, :class:`~.plc.GrippingCycle`: the PLC side over any bus.
-- one subpackage or module per bus, both sides: :mod:`.modbus` (Modbus/TCP), :mod:`.profibus`
-  (PROFIBUS DP), PROFINET IO in ``profinet``.
+- one subpackage per bus, both sides: :mod:`.modbus` (Modbus/TCP), :mod:`.profibus` (PROFIBUS DP-V0
+  slave: FDL, DP state machine, serial line, GSD facts, diagnosis message), ``profinet`` (PROFINET IO).
 """
 
 from __future__ import annotations
