@@ -97,15 +97,13 @@ class ImagePort(Protocol):
 
     def input_bytes(self) -> bytes: ...
 
+    def fail_safe(self, bus: str, reason: str) -> None: ...
+
 
 def fail_safe(port: ImagePort, reason: str) -> None:
-    """``port.fail_safe(BUS_NAME, reason)``: what the gripper does when its master is lost
-    (docs/fidelity.md). A controller without it gets zero outputs (jog levels drop: the jog stops)."""
-    method = getattr(port, "fail_safe", None)
-    if method is not None:
-        method(BUS_NAME, reason)
-    else:
-        port.write_outputs(OutputImage())
+    """What the gripper does when its master is lost: the controller's one rule for every bus
+    (FAST STOP, outputs to zero; docs/fidelity.md "Fieldbus master lost")."""
+    port.fail_safe(BUS_NAME, reason)
 
 
 @dataclass

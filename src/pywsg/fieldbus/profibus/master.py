@@ -22,6 +22,7 @@ from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from ..exchange import FieldbusConnectionError
 from ..image import INPUT_SIZE, OUTPUT_SIZE
 from .gsd import GSD_NAME
 
@@ -31,7 +32,7 @@ SCHEME = "profibus"
 INSTALL_HINT = "profibus:// needs pyprofibus (GPL-2.0+, not in the core install): pip install 'pywsg[profibus]'"
 
 
-class ProfibusError(ConnectionError):
+class ProfibusError(FieldbusConnectionError):
     """The DP master could not start, or lost its slave."""
 
 
