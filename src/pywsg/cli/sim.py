@@ -1,4 +1,4 @@
-"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP and the web."""
+"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP, PROFIBUS DP and the web."""
 
 from __future__ import annotations
 
@@ -100,6 +100,13 @@ def _json_line(line: str) -> str:
               help="CAN bit rate for a hardware interface (ignored by the virtual bus).")
 @click.option("--modbus-port", type=PORT, default="off", show_default=True,
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
+@click.option("--profibus", "profibus_line", default="off", show_default=True, metavar="pty|PATH|off",
+              help="PROFIBUS DP slave (Ident 5555h, WEIS5555.gsd): a new pseudo-terminal for a master on this "
+              "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
+@click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
+              help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
+@click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450, 93750); nominal on a pty.")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
@@ -148,6 +155,9 @@ def sim(
     can_tx_id: int,
     can_bitrate: int,
     modbus_port: int | None,
+    profibus_line: str,
+    profibus_address: int | None,
+    profibus_baudrate: int,
     web_port: int | None,
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
@@ -173,6 +183,15 @@ def sim(
                                  "identifiers", param_hint="--can-tx-id")
     from ..server.limits import Limits
     from ..server.sim import SimError, SimOptions, run_sim
+
+    profibus = _serial(profibus_line)
+    if profibus is not None:
+        from ..fieldbus.profibus.line import check_baudrate
+
+        try:
+            check_baudrate(profibus_baudrate)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--profibus-baudrate") from None
 
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
@@ -207,6 +226,9 @@ def sim(
         can_tx_id=can_tx_id,
         can_bitrate=can_bitrate,
         modbus_port=modbus_port,
+        profibus=profibus,
+        profibus_address=profibus_address,
+        profibus_baudrate=profibus_baudrate,
         web_port=web,
         settings=settings_file,
         count=count,
