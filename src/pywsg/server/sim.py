@@ -24,7 +24,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from .can_bus import CanServer
 from .device_api import GripperLike
@@ -67,6 +67,12 @@ class SimOptions:
     can_bitrate: int = 500_000
     """Bit rate in bit/s for a hardware CAN interface (the virtual bus has none)."""
     modbus_port: int | None = None
+    profinet: str | None = None
+    """Network interface for the PROFINET IO device (needs root or CAP_NET_RAW); None: off."""
+    profinet_name: str | None = None
+    """PROFINET NameOfStation; None: the stored (permanent) one, else unnamed until a DCP Set."""
+    profinet_ip: str | None = None
+    """PROFINET IP suite ``IP/PREFIX`` or ``IP/MASK``; None: the stored one, else none until a DCP Set."""
     web_port: int | None = None
     settings: Path | None = None
     """Settings file: loaded at start when it exists, saved at a clean stop."""
@@ -135,6 +141,7 @@ class SimGripper:
     serial: SerialServer | None = None
     can: CanServer | None = None
     modbus: Any = None
+    profinet: Any = None
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
@@ -176,6 +183,8 @@ class SimGripper:
             out["can"] = self.can.address
         if self.modbus is not None:
             out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
+        if self.profinet is not None:
+            out["profinet"] = self.profinet.url()
         return out
 
     def lines(self) -> list[str]:
@@ -193,6 +202,8 @@ class SimGripper:
             out.append(f"{tag}CAN      {self.can.address} (inferred mapping)")
         if self.modbus is not None:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
+        if self.profinet is not None:
+            out.append(f"{tag}PROFINET {self.profinet.line()}")
         if self.web is not None:
             out.append(f"{tag}web      http://{self.host}:{self.web_port}/")
         return out
@@ -314,11 +325,13 @@ class SimServer:
                 max_connections=opts.limits.modbus_connections,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
+        if opts.profinet is not None:
+            sg.profinet = await self._start_profinet(sg, i)
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
                 "sim_info": sg.info(),
-                "fieldbus": getattr(sg.modbus, "controller", None),
+                "fieldbus": getattr(sg.modbus, "controller", None) or getattr(sg.profinet, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
             }
@@ -327,6 +340,30 @@ class SimServer:
                 "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
+
+    async def _start_profinet(self, sg: SimGripper, i: int) -> Any:
+        opts = self.options
+        if opts.count > 1:
+            raise SimError("--profinet serves one gripper on one interface: use --count 1")
+        try:
+            from ..fieldbus.controller import FieldbusController
+            from ..fieldbus.profinet import ProfinetError, serve_profinet
+            from ..fieldbus.profinet.station import parse_ip_suite
+        except ImportError as exc:
+            raise SimError(f"PROFINET is not available: {exc}") from exc
+        try:
+            suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
+        except ValueError as exc:
+            raise SimError(f"--profinet-ip: {exc}") from None
+        controller = getattr(sg, "fieldbus", None) or getattr(sg.modbus, "controller", None) \
+            or FieldbusController(cast(Any, sg.gripper))
+        store = None if opts.settings is None else Path(opts.settings).with_name(
+            Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
+        try:
+            return await serve_profinet(sg.gripper, str(opts.profinet), controller, station_name=opts.profinet_name,
+                                        ip=suite, store_path=store)
+        except ProfinetError as exc:
+            raise SimError(str(exc)) from None
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
         """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
@@ -348,7 +385,7 @@ class SimServer:
         self._started = False
         for sg in self.grippers:
             sg.runner.stop()
-            for part in (sg.web, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            for part in (sg.web, sg.profinet, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
                 if part is None:
                     continue
                 with contextlib.suppress(Exception):
