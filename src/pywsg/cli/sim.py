@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import re
 from pathlib import Path
 from typing import Any
@@ -108,6 +107,9 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
+@click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
+              help="Close a Modbus/TCP or web connection after this many seconds without data either way "
+                   "(0: never). A polling master is never idle.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
@@ -147,6 +149,7 @@ def sim(
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
+    idle_timeout: float,
     settings_file: Path | None,
     count: int,
     use_uvloop: bool | None,
@@ -176,8 +179,9 @@ def sim(
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
     if level:
-        logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
-        logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
+        from .main import configure_logging
+
+        configure_logging(min(level, 2))
 
     web = web_port
     if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
@@ -211,7 +215,8 @@ def sim(
         web_port=web,
         settings=settings_file,
         count=count,
-        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections),
+        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
+                      idle_timeout=idle_timeout),
         web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
     )
 

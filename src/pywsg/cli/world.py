@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from .runner import EXIT_CONNECTION
+from .runner import EXIT_CONNECTION, NumberArgsCommand
 
 DEFAULT_SIM = "http://127.0.0.1:8080"
 
@@ -131,9 +131,6 @@ json_option = click.option("--json", "as_json", is_flag=True, expose_value=False
                            callback=_set_json, help="Print the API's JSON reply.")
 
 #: A negative DELTA (``wsg world heat -10``) is a number, not an option.
-NUMBERS = {"ignore_unknown_options": True}
-
-
 def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None = None) -> None:
     _show(ctx, call(ctx.obj["sim"], method, path, body, ctx.obj["password"]))
 
@@ -190,7 +187,7 @@ def fault(ctx: click.Context, kind: str, state: str, finger: int) -> None:
     _run(ctx, "POST", "/fault", body)
 
 
-@world.command("heat", context_settings=NUMBERS)
+@world.command("heat", cls=NumberArgsCommand)
 @json_option
 @click.argument("delta", type=float)
 @click.pass_context

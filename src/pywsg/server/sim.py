@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import importlib
 import inspect
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -103,7 +105,17 @@ def _nth(port: int | None, i: int) -> int | None:
     return port + i
 
 
-async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwargs: Any) -> Any:
+def bind_error(what: str, host: str, port: int, option: str, exc: OSError) -> SimError:
+    """A listening socket that could not be opened: which address, why, and how to pick another port."""
+    why = os.strerror(exc.errno) if exc.errno else str(exc)  # asyncio's bind errors carry a long text
+    text = f"{what}: cannot listen on {host}:{port}: {why}"
+    if exc.errno == errno.EADDRINUSE:
+        text += (f" (another program, perhaps another `wsg sim`, has port {port}): choose another with "
+                 f"{option} PORT, or {option} 0 for any free port")
+    return SimError(text)
+
+
+async def _serve_optional(module: str, func: str, what: str, *args: Any, option: str = "", **kwargs: Any) -> Any:
     """Import ``module.func`` only now (optional extras) and await it with the keywords it takes."""
     try:
         mod = importlib.import_module(module)
@@ -116,6 +128,8 @@ async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwarg
     try:
         return await serve(*args, **kwargs)
     except OSError as exc:
+        if option and len(args) >= 3:  # (gripper, host, port, ...): a listening server
+            raise bind_error(what, str(args[1]), int(args[2]), option, exc) from exc
         raise SimError(f"{what}: {exc.strerror or exc}") from exc
 
 
@@ -297,16 +311,19 @@ class SimServer:
     async def _start_one(self, sg: SimGripper, i: int) -> None:
         opts = self.options
         g, r = sg.gripper, sg.runner
-        try:
-            tcp_port = _nth(opts.tcp_port, i)
-            if tcp_port is not None:
+        tcp_port = _nth(opts.tcp_port, i)
+        if tcp_port is not None:
+            try:
                 sg.tcp = await TcpServer(g, r, opts.host, tcp_port, opts.limits).start()
-            udp_port = _nth(opts.udp_port, i)
-            if udp_port is not None:
+            except OSError as exc:
+                raise bind_error(f"gripper {i}: TCP", opts.host, tcp_port, "--tcp-port", exc) from exc
+        udp_port = _nth(opts.udp_port, i)
+        if udp_port is not None:
+            try:
                 sg.udp = await UdpServer(g, r, opts.host, udp_port, opts.udp_reply_port, opts.limits).start()
-                self._warn_reply_port(sg.udp, i)
-        except OSError as exc:
-            raise SimError(f"gripper {i}: cannot bind on {opts.host}: {exc.strerror or exc}") from exc
+            except OSError as exc:
+                raise bind_error(f"gripper {i}: UDP", opts.host, udp_port, "--udp-port", exc) from exc
+            self._warn_reply_port(sg.udp, i)
         if opts.serial:
             path = opts.serial if opts.serial == "pty" or opts.count == 1 else f"{opts.serial}{i}"
             try:
@@ -322,7 +339,8 @@ class SimServer:
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
                 "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                max_connections=opts.limits.modbus_connections,
+                option="--modbus-port", max_connections=opts.limits.modbus_connections,
+                idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         if opts.profinet is not None:
@@ -334,10 +352,12 @@ class SimServer:
                 "fieldbus": getattr(sg.modbus, "controller", None) or getattr(sg.profinet, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
+                "idle_timeout": opts.limits.idle_timeout,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
-                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
+                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, option="--web-port",
+                **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
 
