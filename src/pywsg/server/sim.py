@@ -75,6 +75,12 @@ class SimOptions:
     """PROFINET NameOfStation; None: the stored (permanent) one, else unnamed until a DCP Set."""
     profinet_ip: str | None = None
     """PROFINET IP suite ``IP/PREFIX`` or ``IP/MASK``; None: the stored one, else none until a DCP Set."""
+    profibus: str | None = None
+    """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
+    profibus_address: int | None = None
+    """Station address 0..125; None: the stored one (Settings → Command Interface), else 7."""
+    profibus_baudrate: int = 19200
+    """Baud rate in bit/s (one the GSD declares; nominal on a pty)."""
     web_port: int | None = None
     settings: Path | None = None
     """Settings file: loaded at start when it exists, saved at a clean stop."""
@@ -156,6 +162,9 @@ class SimGripper:
     can: CanServer | None = None
     modbus: Any = None
     profinet: Any = None
+    profibus: Any = None
+    controller: Any = None
+    """The gripper's one FieldbusController, shared by Modbus/TCP and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
@@ -199,6 +208,8 @@ class SimGripper:
             out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
         if self.profinet is not None:
             out["profinet"] = self.profinet.url()
+        if self.profibus is not None:
+            out["profibus"] = self.profibus.url
         return out
 
     def lines(self) -> list[str]:
@@ -218,6 +229,8 @@ class SimGripper:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
         if self.profinet is not None:
             out.append(f"{tag}PROFINET {self.profinet.line()}")
+        if self.profibus is not None:
+            out.append(f"{tag}PROFIBUS {self.profibus.url}")
         if self.web is not None:
             out.append(f"{tag}web      http://{self.host}:{self.web_port}/")
         return out
@@ -231,6 +244,7 @@ class SimServer:
         self.grippers: list[SimGripper] = []
         self.scheduler: Scheduler | None = None
         self._started = False
+        self._own_controllers: list[Any] = []
 
     # convenience for the common single-gripper case
     def __getitem__(self, i: int) -> SimGripper:
@@ -343,13 +357,16 @@ class SimServer:
                 idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
+        sg.controller = getattr(sg.modbus, "controller", None)
+        if opts.profibus:
+            await self._start_profibus(sg, i)
         if opts.profinet is not None:
             sg.profinet = await self._start_profinet(sg, i)
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
                 "sim_info": sg.info(),
-                "fieldbus": getattr(sg.modbus, "controller", None) or getattr(sg.profinet, "controller", None),
+                "fieldbus": sg.controller,
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
                 "idle_timeout": opts.limits.idle_timeout,
@@ -375,8 +392,10 @@ class SimServer:
             suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
         except ValueError as exc:
             raise SimError(f"--profinet-ip: {exc}") from None
-        controller = getattr(sg, "fieldbus", None) or getattr(sg.modbus, "controller", None) \
-            or FieldbusController(cast(Any, sg.gripper))
+        if sg.controller is None:
+            sg.controller = FieldbusController(cast(Any, sg.gripper))
+            self._own_controllers.append(sg.controller)
+        controller = sg.controller
         store = None if opts.settings is None else Path(opts.settings).with_name(
             Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
         try:
@@ -384,6 +403,33 @@ class SimServer:
                                         ip=suite, store_path=store)
         except ProfinetError as exc:
             raise SimError(str(exc)) from None
+    async def _start_profibus(self, sg: SimGripper, i: int) -> None:
+        from ..fieldbus.profibus.station import AddressStore
+
+        opts = self.options
+        store = AddressStore.beside(opts.settings)
+        address = opts.profibus_address
+        if address is None:
+            address = store.load() + i
+        line = opts.profibus or "pty"
+        path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
+        if sg.controller is None:
+            from ..fieldbus.controller import FieldbusController
+
+            sg.controller = FieldbusController(sg.gripper)  # type: ignore[arg-type]
+            self._own_controllers.append(sg.controller)
+        from ..fieldbus.profibus.line import ProfibusAdapter
+
+        try:
+            sg.profibus = await ProfibusAdapter(sg.controller, path, address, opts.profibus_baudrate,
+                                                on_address_change=store.save if i == 0 else None).start()
+        except ValueError as exc:
+            raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
+        except OSError as exc:
+            raise SimError(f"gripper {i}: cannot open PROFIBUS line {path}: {exc}") from exc
+        attach = getattr(sg.controller, "attach_bus", None)
+        if attach is not None:
+            attach(sg.profibus)
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
         """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
@@ -405,11 +451,15 @@ class SimServer:
         self._started = False
         for sg in self.grippers:
             sg.runner.stop()
-            for part in (sg.web, sg.profinet, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
                 if part is None:
                     continue
                 with contextlib.suppress(Exception):
                     await part.close()
+        for controller in self._own_controllers:
+            with contextlib.suppress(Exception):
+                controller.close()
+        self._own_controllers.clear()
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)
