@@ -163,11 +163,21 @@ class SimGripper:
     modbus: Any = None
     profinet: Any = None
     profibus: Any = None
-    controller: Any = None
+    controller: Any = None   # the one FieldbusController every bus of this gripper feeds
     """The gripper's one FieldbusController, shared by Modbus/TCP and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
+
+    def fieldbus_controller(self) -> Any:
+        """The gripper's one :class:`~pywsg.fieldbus.controller.FieldbusController` (``controller``),
+        made when its first bus starts; Modbus/TCP, PROFINET and PROFIBUS adapters all receive it."""
+        if self.controller is None:
+            from ..fieldbus.controller import FieldbusController
+
+            device: Any = self.gripper   # a VirtualGripper (GripperLike is what the transports need)
+            self.controller = FieldbusController(device)
+        return self.controller
 
     @property
     def tcp_port(self) -> int | None:
@@ -244,7 +254,6 @@ class SimServer:
         self.grippers: list[SimGripper] = []
         self.scheduler: Scheduler | None = None
         self._started = False
-        self._own_controllers: list[Any] = []
 
     # convenience for the common single-gripper case
     def __getitem__(self, i: int) -> SimGripper:
@@ -352,12 +361,11 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                option="--modbus-port", max_connections=opts.limits.modbus_connections,
-                idle_timeout=opts.limits.idle_timeout,
+                "pywsg.fieldbus.modbus.server", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                option="--modbus-port", controller=sg.fieldbus_controller(),
+                max_connections=opts.limits.modbus_connections, idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
-        sg.controller = getattr(sg.modbus, "controller", None)
         if opts.profibus:
             await self._start_profibus(sg, i)
         if opts.profinet is not None:
@@ -413,23 +421,16 @@ class SimServer:
             address = store.load() + i
         line = opts.profibus or "pty"
         path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
-        if sg.controller is None:
-            from ..fieldbus.controller import FieldbusController
-
-            sg.controller = FieldbusController(sg.gripper)  # type: ignore[arg-type]
-            self._own_controllers.append(sg.controller)
         from ..fieldbus.profibus.line import ProfibusAdapter
 
         try:
-            sg.profibus = await ProfibusAdapter(sg.controller, path, address, opts.profibus_baudrate,
+            sg.profibus = await ProfibusAdapter(sg.fieldbus_controller(), path, address, opts.profibus_baudrate,
                                                 on_address_change=store.save if i == 0 else None).start()
         except ValueError as exc:
             raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
         except OSError as exc:
             raise SimError(f"gripper {i}: cannot open PROFIBUS line {path}: {exc}") from exc
-        attach = getattr(sg.controller, "attach_bus", None)
-        if attach is not None:
-            attach(sg.profibus)
+        sg.controller.attach_bus(sg.profibus)
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
         """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
@@ -456,10 +457,10 @@ class SimServer:
                     continue
                 with contextlib.suppress(Exception):
                     await part.close()
-        for controller in self._own_controllers:
-            with contextlib.suppress(Exception):
-                controller.close()
-        self._own_controllers.clear()
+            if sg.controller is not None:   # after its buses: none feeds it any more
+                with contextlib.suppress(Exception):
+                    sg.controller.close()
+                sg.controller = None
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)
