@@ -26,7 +26,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from .can_bus import CanServer
 from .device_api import GripperLike
@@ -164,7 +164,7 @@ class SimGripper:
     profinet: Any = None
     profibus: Any = None
     controller: Any = None   # the one FieldbusController every bus of this gripper feeds
-    """The gripper's one FieldbusController, shared by Modbus/TCP and PROFIBUS."""
+    """The gripper's one FieldbusController, shared by Modbus/TCP, PROFINET and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
@@ -391,7 +391,6 @@ class SimServer:
         if opts.count > 1:
             raise SimError("--profinet serves one gripper on one interface: use --count 1")
         try:
-            from ..fieldbus.controller import FieldbusController
             from ..fieldbus.profinet import ProfinetError, serve_profinet
             from ..fieldbus.profinet.station import parse_ip_suite
         except ImportError as exc:
@@ -400,10 +399,7 @@ class SimServer:
             suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
         except ValueError as exc:
             raise SimError(f"--profinet-ip: {exc}") from None
-        if sg.controller is None:
-            sg.controller = FieldbusController(cast(Any, sg.gripper))
-            self._own_controllers.append(sg.controller)
-        controller = sg.controller
+        controller = sg.fieldbus_controller()
         store = None if opts.settings is None else Path(opts.settings).with_name(
             Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
         try:
