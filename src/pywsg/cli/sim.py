@@ -113,7 +113,7 @@ def _json_line(line: str) -> str:
 @click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
               help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
 @click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
-              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450, 93750); nominal on a pty.")
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450); nominal on a pty.")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",

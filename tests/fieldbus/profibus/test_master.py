@@ -150,3 +150,32 @@ def _slave_diag(master: object) -> object:
             if ok and pyprofibus.dp.DpTelegram_SlaveDiag_Con.checkType(tel):
                 return tel
     raise AssertionError("no Slave_Diag response")
+
+
+def test_set_slave_address_persists_in_the_interface_settings(pb_factory: object, tmp_path: object) -> None:
+    """Set_Slave_Address (SAP 55) in Wait_Prm: the slave answers at the new address, and the address is
+    stored as ``profibus_address`` beside the settings file (002 §2.1.2: the station address can be
+    changed), where the next start reads it."""
+    import json
+    import select
+    from pathlib import Path
+
+    settings = Path(str(tmp_path)) / "s.json"
+    sim = pb_factory(tcp_port=None, udp_port=None, profibus="pty", settings=settings)  # type: ignore[operator]
+    ad = adapter(sim)
+    fd = os.open(ad.path, os.O_RDWR | os.O_NOCTTY)
+    try:
+        import tty
+
+        tty.setraw(fd)
+        os.write(fd, fdl.encode(7, MASTER, 0x4D, bytes((33, 0x55, 0x55, 0)), dsap=55, ssap=62))
+        assert select.select([fd], [], [], 5)[0], "no answer to Set_Slave_Address"
+        assert os.read(fd, 64) == fdl.SHORT_ACK
+        os.write(fd, fdl.encode(33, MASTER, 0x49))          # FDL status at the new address
+        assert select.select([fd], [], [], 5)[0], "no answer at address 33"
+        assert os.read(fd, 64) == fdl.encode(MASTER, 33, fdl.RES_OK)
+    finally:
+        os.close(fd)
+    stored = json.loads((settings.parent / "s.interface.json").read_text())
+    assert stored["profibus_address"] == 33
+    assert ad.bus_state()["Station Address"] == "33"
