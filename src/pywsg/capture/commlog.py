@@ -15,6 +15,7 @@ JSON form: one object per line (JSON Lines) with ``time`` (Unix seconds), ``dire
 
 from __future__ import annotations
 
+import collections
 import datetime as _dt
 import json
 import sys
@@ -93,13 +94,14 @@ class CommLog:
     """A sink for frames: writes text lines and/or JSON lines, and calls listeners.
 
     ``record(direction, frame)`` is what a transport tap calls for every frame it sends or receives.
-    Thread-safe (the sync driver runs its loop in another thread).
+    ``entries`` keeps only the last ``keep`` entries (a long capture streams to the files, not to
+    memory). Thread-safe (the sync driver runs its loop in another thread).
     """
 
-    def __init__(self, text: TextIO | None = None, jsonl: TextIO | None = None) -> None:
+    def __init__(self, text: TextIO | None = None, jsonl: TextIO | None = None, keep: int = 1000) -> None:
         self.text = text
         self.jsonl = jsonl
-        self.entries: list[LogEntry] = []
+        self.entries: collections.deque[LogEntry] = collections.deque(maxlen=keep)
         self.listeners: list[Callable[[LogEntry], None]] = []
         self._lock = threading.Lock()
 
