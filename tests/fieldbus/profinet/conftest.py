@@ -28,6 +28,7 @@ HERE = Path(__file__).resolve().parent
 CONTROLLER = HERE / "pn_controller.py"
 DEVICE_IP, CONTROLLER_IP = "192.168.77.2", "192.168.77.1"
 STATION = "wsg-test"
+WSG = [sys.executable, "-c", "from pywsg.cli.main import main; main()"]
 _counter = itertools.count()
 
 
@@ -65,7 +66,7 @@ class Wire:
         return p
 
     def sim(self, *extra: str, name: str | None = STATION, ip: str | None = f"{DEVICE_IP}/24") -> Sim:
-        argv = [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--json", "--no-uvloop",
+        argv = [*WSG, "sim", "--json", "--no-uvloop",
                 "--tcp-port", "0", "--udp-port", "0", "--serial", "off", "--web-port", "off",
                 "--profinet", self.iface]
         if name is not None:
@@ -76,10 +77,10 @@ class Wire:
         line = _read_line(p, 20.0, lambda s: '"profinet"' in s)
         return Sim(p, json.loads(line))
 
-    def controller(self, *args: str, timeout: float = 60.0) -> dict[str, object]:
-        """Run one scenario of pn_controller.py in the controller namespace; its last stdout line (JSON)."""
-        t0 = time.monotonic()
-        p = self.popen(self.controller_ns, [sys.executable, str(CONTROLLER), self.iface, *args])
+    def controller(self, *args: str, timeout: float = 60.0, argv: list[str] | None = None) -> dict[str, object]:
+        """Run one scenario of pn_controller.py (or ``argv``) in the controller namespace; its last stdout
+        line (JSON)."""
+        p = self.popen(self.controller_ns, argv or [sys.executable, str(CONTROLLER), self.iface, *args])
         try:
             out, err = p.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -87,9 +88,9 @@ class Wire:
             out, err = p.communicate()
             raise AssertionError(f"controller {args} still running after {timeout} s; stderr:\n{err[-3000:]}") from None
         lines = [ln for ln in out.splitlines() if ln.startswith("{")]
-        assert p.returncode == 0 and lines, f"controller {args} exited {p.returncode}:\n{out[-2000:]}\n{err[-3000:]}"
+        why = f"controller {args or argv} exited {p.returncode}:\n{out[-2000:]}\n{err[-3000:]}"
+        assert (p.returncode == 0 or argv) and lines, why
         result: dict[str, object] = json.loads(lines[-1])
-        print(f"controller {args}: {time.monotonic() - t0:.1f} s")
         return result
 
     def close(self) -> None:
