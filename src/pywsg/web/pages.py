@@ -136,7 +136,11 @@ def router(ctx: WebContext) -> APIRouter:
         files = doc_files()
         docs = "".join(f"<li><a href='/docs/{escape(n)}'>{escape(n)}</a></li>" for n in files) or \
             "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
+        from ..fieldbus import descriptions
+
+        gsd = "".join(f"<li><a href='/downloads/descriptions/{escape(n)}' download>{escape(n)}</a></li>"
+                      for n in descriptions.names())
         return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
-                           reference=command_reference_html())
+                           reference=command_reference_html(), descriptions=gsd)
 
     return r

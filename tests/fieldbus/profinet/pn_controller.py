@@ -46,8 +46,12 @@ def identify(name: str) -> None:
 
 
 def setup(cycle_ms: int) -> IOCRSetup:
+    """An AR from pywsg's GSDML; watchdog and data hold ≥ 200 ms, as ProfinetExchange uses (a loaded
+    2-core machine stalls a Python controller's threads for tens of ms)."""
     gsdml = load_gsdml(str(gsdml_path()))
-    return IOCRSetup(slots=gsdml.build_io_slots(), reduction_ratio=cycle_ms)
+    factor = max(3, -(-200 // cycle_ms))
+    return IOCRSetup(slots=gsdml.build_io_slots(), reduction_ratio=cycle_ms, watchdog_factor=factor,
+                     data_hold_factor=factor)
 
 
 async def _scl(name: str, cycles: int, cycle_ms: int) -> None:
@@ -74,10 +78,11 @@ def hold(name: str, seconds: float, cycle_ms: int = 16) -> None:
     if len(sys.argv) > 5 and sys.argv[5] == "silent":
         out(inputs=data.hex() if data else None, stats=str(cyc.stats))
         os._exit(0)   # no Release, no stop frames: the device's watchdog must notice
-    stats = cyc.stats
+    stats, state = cyc.stats, cyc.state.value
     cyc.stop()
     dev.close()
-    out(inputs=data.hex() if data else None, received=stats.frames_received, missed=stats.frames_missed)
+    out(inputs=data.hex() if data else None, received=stats.frames_received, missed=stats.frames_missed,
+        state=state)
 
 
 def dcp_scenario(name: str, mac: str) -> None:
@@ -88,7 +93,7 @@ def dcp_scenario(name: str, mac: str) -> None:
     res["get_name"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
     res["set_name"] = dcp.set_param(sock, src, mac, "name", "renamed-wsg", permanent=True)
     res["found_renamed"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.mac
-    res["set_ip"] = dcp.set_ip(sock, src, mac, ["192.168.77.9", "255.255.255.0", "0.0.0.0"], permanent=False)
+    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0")
     res["ip_after"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.ip
     res["signal"] = dcp.signal_device(sock, src, mac)
     res["reset"] = dcp.reset_to_factory(sock, src, mac)
@@ -166,7 +171,7 @@ def main() -> None:
     elif scenario == "scl":
         asyncio.run(_scl(args[0], int(args[1]), int(args[2])))
     elif scenario == "hold":
-        hold(args[0], float(args[1]))
+        hold(args[0], float(args[1]))   # argv[5] "silent": vanish without a Release
     elif scenario == "dcp":
         dcp_scenario(args[0], args[1])
     elif scenario == "flood":

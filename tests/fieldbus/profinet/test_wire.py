@@ -11,7 +11,7 @@ from typing import ClassVar
 
 import pytest
 
-from .conftest import DEVICE_IP, STATION, Wire
+from .conftest import DEVICE_IP, STATION, WSG, Wire
 
 pytestmark = [pytest.mark.realtime, pytest.mark.xdist_group("profinet")]
 
@@ -80,8 +80,11 @@ def test_profinet_py_finds_reads_connects_and_runs_the_scl_cycle(wire: Wire, tmp
     assert isinstance(im0, dict)
     assert im0["vendor_id"] == 0x02A2 and im0["order_id"] == "WSG 50" and im0["serial"]
 
-    scl = wire.controller("scl", STATION, "1", "16", timeout=90)
-    assert scl["cycles"] == 1 and scl["holds"] == 1 and scl["errors"] == 0, scl
+    # the manual's SCL gripping cycle as the user runs it: wsg plc-demo over profinet://
+    url = f"profinet://{wire.iface}/{STATION}"
+    done = wire.controller(argv=[*WSG, "plc-demo", "--url", url, "--cycles", "1", "--json"], timeout=90)
+    assert done["event"] == "done" and done["ok"] is True, done
+    assert done["cycles"] == 1 and done["holds"] == 1 and done["errors"] == 0, done
     cap.stop()
     err = sim.stop()
     assert "Traceback" not in err

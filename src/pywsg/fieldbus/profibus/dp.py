@@ -153,6 +153,11 @@ class DpSlave:
         self._pending_address: int | None = None
         self.last_reason = ""                   # why the slave last left Data_Exch / refused
 
+    @property
+    def diagnosis_pending(self) -> bool:
+        """A new diagnosis the locking master has not read yet (Data_Exchange answers DH)."""
+        return self._diag_pending
+
     # --- the entry point ---------------------------------------------------------------------
     def handle(self, tel: fdl.Telegram, now: float) -> bytes | None:
         """The response to ``tel`` (bytes to put on the line), or None: no answer."""

@@ -201,7 +201,7 @@ class ConnectionManager:
                 status, args = self._operation(hdr.opnum, ndr.args, src_ip, sport)
                 if len(args) > maximum:
                     status, args = pnio_status(READ_ERR, PNIORW, 0xB1, 0), b""
-            reply = rpc.response(hdr, rpc.ndr_response(status, args, maximum, hdr.little), self.boot_time)
+            reply = rpc.response(hdr, rpc.ndr_response(status, args, maximum, little=True), self.boot_time)
         if len(self._replies) >= 16:
             self._replies.pop(next(iter(self._replies)))
         self._replies[key] = reply
@@ -452,11 +452,11 @@ class ConnectionManager:
 
     # --- CControl: ApplicationReady ----------------------------------------------------------------
     def application_ready(self, ar: AR, activity: uuid.UUID, seqnum: int) -> bytes:
-        """The device's CControl request (IOXControlReq, ApplicationReady) to the controller, big endian."""
+        """The device's CControl request (IOXControlReq, ApplicationReady) to the controller, little endian."""
         body = b.control(b.APP_READY_REQ, ar.uuid, ar.request.session_key, b.CMD_APP_READY) + ar.diff
-        hdr = rpc.RpcHeader(rpc.REQUEST, rpc.FLAG_IDEMPOTENT, 0, b"\x00\x00\x00", ar.request.initiator_object,
+        hdr = rpc.RpcHeader(rpc.REQUEST, rpc.FLAG_IDEMPOTENT, 0, rpc.LITTLE_ENDIAN, ar.request.initiator_object,
                             rpc.UUID_CONTROLLER, activity, self.boot_time, 1, seqnum, rpc.OP_CONTROL, 0, 0, 0)
-        return rpc.build(hdr, rpc.ndr_request(body, little=False))
+        return rpc.build(hdr, rpc.ndr_request(body, little=True))
 
     @staticmethod
     def application_ready_done(data: bytes, activity: uuid.UUID) -> bool | None:

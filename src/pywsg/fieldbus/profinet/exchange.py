@@ -23,6 +23,8 @@ from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from ..exchange import FieldbusConnectionError
+
 log = logging.getLogger(__name__)
 
 WSG_SLOT, WSG_SUBSLOT = 1, 1
@@ -31,17 +33,17 @@ HOLD_MS = 200
 GSDML_NAME = "GSDML-V2.31-WeissRobotics-WSG-20140401.xml"
 
 
-class ProfinetUnavailable(ImportError):
+class ProfinetUnavailable(FieldbusConnectionError):
     """profinet-py (the optional extra ``profinet``) is not installed."""
 
 
 def _profinet() -> Any:
     try:
         import profinet
-    except ImportError as exc:
+    except ImportError:
         raise ProfinetUnavailable(
             "the PROFINET controller needs profinet-py (GPL-3.0, an optional extra): pip install 'pywsg[profinet]'"
-        ) from exc
+        ) from None
     return profinet
 
 
@@ -105,21 +107,23 @@ class ProfinetExchange:
         try:
             device = pn.ProfinetDevice.discover(u.station, u.iface, timeout=u.timeout)
         except PermissionError as exc:
-            raise ConnectionError(f"PROFINET on {u.iface} needs root or CAP_NET_RAW: {exc}") from None
+            raise FieldbusConnectionError(f"PROFINET on {u.iface} needs root or CAP_NET_RAW: {exc}") from None
+        except OSError as exc:
+            raise FieldbusConnectionError(f"PROFINET on {u.iface}: {exc.strerror or exc}") from None
         except pn.DCPDeviceNotFoundError:
-            raise ConnectionError(f"no PROFINET station {u.station!r} answers DCP on {u.iface}") from None
+            raise FieldbusConnectionError(f"no PROFINET station {u.station!r} answers DCP on {u.iface}") from None
         try:
             cyclic = device.start_cyclic(setup, start_alarm_listener=False)
         except Exception as exc:
             device.close()
-            raise ConnectionError(f"PROFINET connect to {u.station!r} failed: {exc}") from None
+            raise FieldbusConnectionError(f"PROFINET connect to {u.station!r} failed: {exc}") from None
         return cls(u, device, cyclic)
 
     async def read_inputs(self) -> bytes:
         data = self._cyclic.get_input_data(WSG_SLOT, WSG_SUBSLOT)
         if data is None:
             if not self._cyclic.is_running:
-                raise ConnectionError(f"PROFINET AR with {self.url.station!r} lost")
+                raise FieldbusConnectionError(f"PROFINET AR with {self.url.station!r} lost")
             # no valid input frame yet (IOPS still BAD right after connect): wait one cycle
             await asyncio.sleep(self.url.cycle_ms / 1000)
             data = self._cyclic.get_input_data(WSG_SLOT, WSG_SUBSLOT)
@@ -146,7 +150,10 @@ class ProfinetExchange:
 
 async def open_exchange(url: str, *, timeout: float = 3.0) -> ProfinetExchange:
     """``profinet://IFACE/STATION[?cycle_ms=N]``: find, connect, start cyclic IO (``timeout``: DCP, s)."""
-    u = ProfinetUrl.parse(url)
+    try:
+        u = ProfinetUrl.parse(url)
+    except ValueError as exc:
+        raise FieldbusConnectionError(str(exc)) from None
     if "timeout=" not in url:
         u = ProfinetUrl(u.iface, u.station, u.cycle_ms, max(timeout, 3.0))
     return await ProfinetExchange.open(u)

@@ -2,7 +2,8 @@
 
 Multi-byte header fields and the first three UUID fields follow the sender's data representation
 (DREP byte 0: 10h little endian, 00h big endian); the PNIO blocks inside are always big endian.
-The device answers in the request's representation. Fragmented requests are refused (a connect of the
+The device answers little endian (DREP 10h), whatever the request used, as IO devices commonly do
+(controllers such as profinet-py read the NDR status that way). Fragmented requests are refused (a connect of the
 WSG's two slots fits one datagram).
 """
 
@@ -88,16 +89,19 @@ def build(hdr: RpcHeader, body: bytes) -> bytes:
             + bytes([0, hdr.serial & 0xFF]) + body)
 
 
+LITTLE_ENDIAN = b"\x10\x00\x00"
+
+
 def response(req: RpcHeader, body: bytes, boot_time: int, ptype: int = RESPONSE) -> bytes:
-    """A reply to ``req`` in its representation (same UUIDs, sequence and operation numbers)."""
-    hdr = replace(req, ptype=ptype, flags1=FLAG_LASTFRAG | FLAG_NOFACK, flags2=0, boot_time=boot_time,
-                  fragnum=0)
+    """A reply to ``req``, little endian (same UUIDs, sequence and operation numbers); ``body`` must be
+    encoded little endian too."""
+    hdr = replace(req, drep=LITTLE_ENDIAN, ptype=ptype, flags1=FLAG_LASTFRAG | FLAG_NOFACK, flags2=0,
+                  boot_time=boot_time, fragnum=0)
     return build(hdr, body)
 
 
 def reject(req: RpcHeader, status: int, boot_time: int) -> bytes:
-    bo = "<" if req.little else ">"
-    return response(req, struct.pack(bo + "I", status), boot_time, ptype=REJECT)
+    return response(req, struct.pack("<I", status), boot_time, ptype=REJECT)
 
 
 @dataclass(frozen=True)
