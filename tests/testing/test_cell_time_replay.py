@@ -52,6 +52,19 @@ def test_time_scale_homes_k_times_sooner_with_the_same_device_duration() -> None
     assert real < device_duration  # K = 25: 1/25 of it plus the machine's latency (generous under load)
 
 
+def test_time_scale_cools_the_motor_k_times_sooner() -> None:
+    """The thermal model (tau 300 s) on a 1000x clock: a minute of cooling in well under a second."""
+    with SimThread(time_scale=1000) as sim:
+        sim.world.heat(40.0)
+        hot = sim.world.state()
+        deadline = time.monotonic() + 10
+        while sim.world.state()["time"] - hot["time"] < 60 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        cooled = sim.world.state()
+    assert cooled["time"] - hot["time"] >= 60, "the scaled clock did not run"
+    assert cooled["temperature"] < hot["temperature"] - 5  # 40 °C above equilibrium: ~7.3 °C per minute
+
+
 def test_time_scale_and_clock_are_exclusive() -> None:
     with pytest.raises(ValueError, match="time_scale and clock"):
         SimThread(clock="manual", time_scale=10)
