@@ -139,3 +139,16 @@ def test_a_replay_that_differs_fails_with_every_difference_named(wsg_sim: SimThr
     with pytest.raises(AssertionError, match=r"difference\(s\) from the recording") as err:
         wsg_sim.assert_replays(SAMPLE)  # recorded on a WSG 50 (110 mm stroke); this is a WSG 32
     assert "width: recorded 110 mm" in str(err.value)
+
+
+def test_wsg_replay_sim_is_the_ci_one_liner() -> None:
+    from .conftest import wsg
+
+    done = wsg("replay", str(SAMPLE), "--sim", "wsg50")
+    assert done.returncode == 0 and "all replies matched" in done.stdout, done.stdout + done.stderr
+    done = wsg("replay", str(SAMPLE), "--sim", "wsg32", "--json")
+    assert done.returncode == 1
+    report = json.loads(done.stdout)
+    assert not report["matched"] and any(d["what"] == "width" for d in report["differences"])
+    done = wsg("replay", str(SAMPLE))
+    assert done.returncode == 2 and "--to URL or --sim MODEL" in done.stderr
