@@ -21,6 +21,7 @@ from typing import Any
 
 from fastapi.responses import JSONResponse
 
+from ..device.clock import real_seconds
 from ..protocol import CATALOG, Command, DeviceType, Frame, Status
 from .security import Auth
 from .views import jsonable, state_view
@@ -137,7 +138,7 @@ class LogFeed:
         wall = time.time()
         if isinstance(t, int | float) and self.clock is not None:
             with contextlib.suppress(Exception):
-                wall -= max(0.0, float(self.clock()) - t)
+                wall -= max(0.0, real_seconds(self.clock, float(self.clock()) - t))  # --time-scale K
         data["wall_time"] = wall
         self.entries.append(data)
 
