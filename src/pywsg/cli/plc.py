@@ -123,6 +123,10 @@ def check_url(url: str) -> str:
 
             host, port = parse_url(url)
             return f"modbus-tcp://{host}:{port}"
+        if SCHEMES[scheme] == "profinet":
+            from ..fieldbus.profinet.exchange import ProfinetUrl
+
+            ProfinetUrl.parse(url)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--url") from None
     return url

@@ -69,6 +69,12 @@ class SimOptions:
     can_bitrate: int = 500_000
     """Bit rate in bit/s for a hardware CAN interface (the virtual bus has none)."""
     modbus_port: int | None = None
+    profinet: str | None = None
+    """Network interface for the PROFINET IO device (needs root or CAP_NET_RAW); None: off."""
+    profinet_name: str | None = None
+    """PROFINET NameOfStation; None: the stored (permanent) one, else unnamed until a DCP Set."""
+    profinet_ip: str | None = None
+    """PROFINET IP suite ``IP/PREFIX`` or ``IP/MASK``; None: the stored one, else none until a DCP Set."""
     profibus: str | None = None
     """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
     profibus_address: int | None = None
@@ -155,9 +161,10 @@ class SimGripper:
     serial: SerialServer | None = None
     can: CanServer | None = None
     modbus: Any = None
+    profinet: Any = None
     profibus: Any = None
     controller: Any = None   # the one FieldbusController every bus of this gripper feeds
-    """The gripper's one FieldbusController, shared by Modbus/TCP and PROFIBUS."""
+    """The gripper's one FieldbusController, shared by Modbus/TCP, PROFINET and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
@@ -209,6 +216,8 @@ class SimGripper:
             out["can"] = self.can.address
         if self.modbus is not None:
             out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
+        if self.profinet is not None:
+            out["profinet"] = self.profinet.url()
         if self.profibus is not None:
             out["profibus"] = self.profibus.url
         return out
@@ -228,6 +237,8 @@ class SimGripper:
             out.append(f"{tag}CAN      {self.can.address} (inferred mapping)")
         if self.modbus is not None:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
+        if self.profinet is not None:
+            out.append(f"{tag}PROFINET {self.profinet.line()}")
         if self.profibus is not None:
             out.append(f"{tag}PROFIBUS {self.profibus.url}")
         if self.web is not None:
@@ -357,6 +368,8 @@ class SimServer:
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         if opts.profibus:
             await self._start_profibus(sg, i)
+        if opts.profinet is not None:
+            sg.profinet = await self._start_profinet(sg, i)
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
@@ -373,6 +386,27 @@ class SimServer:
             )
             sg.web_port = _bound_port(sg.web) or web_port
 
+    async def _start_profinet(self, sg: SimGripper, i: int) -> Any:
+        opts = self.options
+        if opts.count > 1:
+            raise SimError("--profinet serves one gripper on one interface: use --count 1")
+        try:
+            from ..fieldbus.profinet import ProfinetError, serve_profinet
+            from ..fieldbus.profinet.station import parse_ip_suite
+        except ImportError as exc:
+            raise SimError(f"PROFINET is not available: {exc}") from exc
+        try:
+            suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
+        except ValueError as exc:
+            raise SimError(f"--profinet-ip: {exc}") from None
+        controller = sg.fieldbus_controller()
+        store = None if opts.settings is None else Path(opts.settings).with_name(
+            Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
+        try:
+            return await serve_profinet(sg.gripper, str(opts.profinet), controller, station_name=opts.profinet_name,
+                                        ip=suite, store_path=store)
+        except ProfinetError as exc:
+            raise SimError(str(exc)) from None
     async def _start_profibus(self, sg: SimGripper, i: int) -> None:
         from ..fieldbus.profibus.station import AddressStore
 
@@ -414,7 +448,7 @@ class SimServer:
         self._started = False
         for sg in self.grippers:
             sg.runner.stop()
-            for part in (sg.web, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
                 if part is None:
                     continue
                 with contextlib.suppress(Exception):

@@ -6,6 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from pywsg.device import ManualClock, VirtualGripper
 from pywsg.fieldbus.controller import FieldbusController
@@ -252,3 +254,29 @@ def test_unknown_sap_answers_rs_and_telegrams_for_others_get_nothing(slave: DpSl
     bus = Bus(slave)
     assert bus.srd(b"", 40) == fdl.encode(M, 7, fdl.RES_RS)
     assert bus.raw(0x49, da=8) is None
+
+
+def test_set_address_from_the_settings_page_drops_the_master_fail_safe(slave: DpSlave, port: Recorder) -> None:
+    Bus(slave).connect()
+    slave.set_address(20)
+    assert slave.state is DpState.WAIT_PRM and slave.master is None and slave.address == 20
+    assert port.fail_safes == [("PROFIBUS DP", "station address changed to 20")]
+    with pytest.raises(ValueError):
+        slave.set_address(126)
+
+
+@given(fc=st.integers(0, 255), dsap=st.none() | st.integers(0, 63), ssap=st.none() | st.integers(0, 63),
+       data=st.binary(max_size=64), sa=st.integers(0, 126))
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_telegram_gets_no_exception_and_a_well_formed_answer(
+        slave: DpSlave, fc: int, dsap: int | None, ssap: int | None, data: bytes, sa: int) -> None:
+    """Whatever a master (or noise with a valid FCS) sends: no exception, and the answer, if any, is
+    a short acknowledge or one well-formed telegram to the sender."""
+    tel = fdl.Telegram(slave.address, sa, fc, data, dsap, ssap)   # Set_Slave_Address may move it
+    resp = slave.handle(tel, 0.0)
+    slave.after_response()
+    if resp is None or resp == fdl.SHORT_ACK:
+        return
+    events = fdl.FdlParser().feed(resp)
+    assert len(events) == 1 and isinstance(events[0], fdl.Telegram)
+    assert events[0].da == sa and not events[0].is_request
