@@ -12,12 +12,16 @@ fault          what the client sees                                         inte
 ``bandwidth``  replies trickle at ``rate`` bytes/s                          TCP, UDP, serial, proxy
 ``slicer``     replies cut into ``size``-byte segments, ``gap`` ms apart    TCP, serial, proxy
 ``reset``      TCP connections reset (RST) ``timeout`` s after they open    TCP, proxy
+               (those already open: after the switch)
 ``silent``     nothing at all: requests are not executed, no replies;       TCP, UDP, serial, proxy
                the connection stays open (closed after ``timeout`` s > 0)
 ``drop``       each datagram lost with probability ``p`` (both directions) UDP, proxy (UDP)
 ``reorder``    a reply datagram held back, sent after the next one (``p``)  UDP, proxy (UDP)
 ``garble``     each byte flipped with probability ``p`` (both directions)  serial, TCP, UDP, proxy
 =============  ==========================================================  ======================
+
+On CAN (:mod:`pywsg.server.can_bus`) each 8-byte CAN frame counts as a datagram (drop, reorder,
+latency, garble, silent); Modbus/TCP has none of these hooks.
 
 Times of the network are real seconds (``time.monotonic``), not the gripper's clock: a manual or
 scaled gripper clock does not slow down or speed up the wire. Random choices come from one
@@ -241,7 +245,7 @@ class Shaper:
     overtake each other with jitter, be dropped or held back (reorder).
     """
 
-    def __init__(self, faults: NetFaults, write: Callable[[bytes], None], ordered: bool = True) -> None:
+    def __init__(self, faults: NetFaults, write: Callable[[bytes], object], ordered: bool = True) -> None:
         self.faults = faults
         self.write = write
         self.ordered = ordered
@@ -282,10 +286,10 @@ class Shaper:
         for n, piece in enumerate(pieces):
             if n and s.slice_delay:
                 t += s.slice_delay
-            if s.rate:
-                t = max(t, self._free if self.ordered else now) + len(piece) / s.rate
+            if s.rate:  # the link carries one piece at a time, datagrams too
+                t = max(t, self._free) + len(piece) / s.rate
             self._at(loop, t, piece)
-            if self.ordered:
+            if self.ordered or s.rate:
                 self._free = t
         self._last = t
         if self._held is not None:

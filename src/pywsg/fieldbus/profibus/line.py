@@ -1,11 +1,14 @@
 """The DP slave on a serial line: a new pty (tests, a master in the same machine) or a real port
 (a USB RS-485 adapter), on the asyncio loop of the virtual gripper.
 
-Bytes in → :class:`~.fdl.FdlParser` → :class:`~.dp.DpSlave` → the response written at once. With a
-pty the slave keeps its own handle on the client side open, so a master closing and reopening the
+Bytes in → :class:`~.fdl.FdlParser` → :class:`~.dp.DpSlave` → the response written at once (on a
+real port not before the master's min TSDR from Set_Prm, so its RS-485 driver has turned round). With
+a pty the slave keeps its own handle on the client side open, so a master closing and reopening the
 port never turns the line into ``EIO``. A real port is opened 8E1 (PROFIBUS's UART character: 8 data
-bits, even parity, 1 stop bit) at the given baud rate; on a pty the kernel accepts the parity setting
-but enforces nothing, so a parity error can only happen on a real port, where the UART drops it.
+bits, even parity, 1 stop bit) at the given baud rate, with input parity checking on and characters
+with a parity error dropped (``INPCK | IGNPAR``; pyserial turns checking off), so the telegram they
+belong to fails its length or FCS and gets no answer. A pty has no parity: its kernel driver clears
+the parity bit whatever is asked (CS8, no parity), so parity cannot be checked there.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import asyncio
 import errno
 import logging
 import os
+import termios
 import tty
 from collections.abc import Callable
 from typing import Any
@@ -49,6 +53,13 @@ def check_baudrate(baudrate: int) -> None:
                          f"({', '.join(str(r) for r in rates)})")
 
 
+def _check_parity(fd: int) -> None:
+    """Turn input parity checking on and drop characters with a parity error (pyserial clears INPCK)."""
+    attrs = termios.tcgetattr(fd)
+    attrs[0] = (attrs[0] | termios.INPCK | termios.IGNPAR) & ~termios.PARMRK
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
+
+
 class ProfibusAdapter:
     """The WSG's PROFIBUS DP interface: one :class:`DpSlave` on ``port`` (``"pty"`` or a device path).
 
@@ -70,6 +81,7 @@ class ProfibusAdapter:
         self.path = ""
         self.line_errors = 0
         self.dropped_responses = 0
+        self.failure: str | None = None   # why the port stopped working
         self._fd = -1
         self._keep_fd = -1
         self._serial: Any = None
@@ -91,6 +103,7 @@ class ProfibusAdapter:
                                          parity=serial.PARITY_EVEN, stopbits=serial.STOPBITS_ONE, timeout=0)
             self._fd = self._serial.fileno()
             self.path = self.requested
+            _check_parity(self._fd)
         os.set_blocking(self._fd, False)
         self._loop.add_reader(self._fd, self._on_readable)
         log.info("PROFIBUS DP slave %d on %s at %d bit/s", self.slave.address, self.path, self.baudrate)
@@ -114,7 +127,9 @@ class ProfibusAdapter:
     def bus_state(self) -> dict[str, str]:
         """The Fieldbus Monitor's Bus State rows (003 §6)."""
         state = "Offline" if self._closed else _STATE_TEXT[self.slave.state]
-        if self.slave.state is DpState.WAIT_PRM and self.slave.last_reason and not self._closed:
+        if self.failure and not self._closed:
+            state = f"Offline: {self.failure}"
+        elif self.slave.state is DpState.WAIT_PRM and self.slave.last_reason and not self._closed:
             state += f": {self.slave.last_reason}"
         rate = bitrate_text(self.baudrate) + (" (pty: nominal)" if self.requested == "pty" else "")
         return {"Station Address": str(self.slave.address), "Bitrate": rate, "Interface state": state}
@@ -125,10 +140,13 @@ class ProfibusAdapter:
         except BlockingIOError:
             return
         except OSError as exc:
-            if exc.errno == errno.EIO:
-                return
-            raise
+            if exc.errno == errno.EIO and self._serial is None:
+                return   # pty: no master side open (cannot happen while we keep our handle)
+            self._lost(exc)
+            return
         if not data:
+            if self._serial is not None:
+                self._lost(OSError("end of file"))
             return
         assert self._loop is not None
         slave = self.slave
@@ -139,11 +157,29 @@ class ProfibusAdapter:
                     log.debug("PROFIBUS %s: %s, %d bytes dropped", self.path, ev.reason, ev.skipped)
                 continue
             response = slave.handle(ev, self._loop.time())
-            if response is not None:
-                self._write(response)
-                slave.after_response()
+            if response is None:
+                continue
+            delay = slave.min_tsdr / self.baudrate if self._serial is not None else 0.0
+            if delay > 0.0002:   # below that, the time to get here has already passed it
+                self._loop.call_later(delay, self._respond, response)
+            else:
+                self._respond(response)
         if slave.watchdog_deadline is not None and self._timer is None:
             self._timer = self._loop.call_at(slave.watchdog_deadline, self._on_watchdog)
+
+    def _lost(self, exc: OSError) -> None:
+        """The port failed (a USB adapter unplugged): stop reading it, once, and say so."""
+        if self.failure is None:
+            self.failure = f"{self.path}: {exc.strerror or exc}"
+            log.error("PROFIBUS line lost: %s", self.failure)
+        if self._loop is not None and self._fd >= 0:
+            self._loop.remove_reader(self._fd)
+
+    def _respond(self, data: bytes) -> None:
+        if self._closed:
+            return
+        self._write(data)
+        self.slave.after_response()
 
     def _write(self, data: bytes) -> None:
         try:
