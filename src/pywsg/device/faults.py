@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-DEFAULT_PART_STIFFNESS = 500.0  # N/mm, assumed: a firm plastic part
+DEFAULT_PART_STIFFNESS = math.inf  # N/mm: rigid, so a held part reads its own width (docs/fidelity.md)
 
 
 @dataclass(frozen=True, slots=True)
