@@ -49,8 +49,8 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
       wsg --url tcp://127.0.0.1:2000 home          # any client, through the tap
       wsg decode -f cell.pcapng                    # later: the whole exchange
     """
+    from ..capture.commlog import CommLog, LogEntry
     from ..testing.proxy import Proxy
-    from .commlog import CommLog, LogEntry
 
     host, _, port_text = listen.rpartition(":")
     try:

@@ -17,9 +17,9 @@ from typing import Any, NoReturn, TypeVar
 
 import click
 
+from ..capture.commlog import CommLog
 from ..errors import HINT_ACKNOWLEDGE, HINT_HOME
 from ..protocol import Status, StatusError
-from .commlog import CommLog
 
 F = TypeVar("F", bound=Callable[..., Any])
 

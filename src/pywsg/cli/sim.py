@@ -101,6 +101,9 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
+@click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
+              help="Close a Modbus/TCP or web connection after this many seconds without data either way "
+                   "(0: never). A polling master is never idle.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
@@ -137,6 +140,7 @@ def sim(
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
+    idle_timeout: float,
     settings_file: Path | None,
     count: int,
     use_uvloop: bool | None,
@@ -192,7 +196,8 @@ def sim(
         web_port=web,
         settings=settings_file,
         count=count,
-        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections),
+        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
+                      idle_timeout=idle_timeout),
         web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
     )
 

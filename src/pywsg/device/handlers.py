@@ -309,7 +309,7 @@ def statistics(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 
 def temperature(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
-    return Frame.reply(0x46, S.E_SUCCESS, _TEMP.pack(round(g.thermal.temperature(now) * 10)))
+    return Frame.reply(0x46, S.E_SUCCESS, _TEMP.pack(max(-32768, min(32767, round(g.thermal.temperature(now) * 10)))))
 
 
 # 3.5 system configuration

@@ -333,17 +333,19 @@ class ModbusHandle:
 
 
 async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD_PORT,
-                       controller: FieldbusController | None = None, max_connections: int = 32) -> ModbusHandle:
+                       controller: FieldbusController | None = None, max_connections: int = 32,
+                       idle_timeout: float | None = None) -> ModbusHandle:
     """Serve ``gripper``'s fieldbus interface over Modbus/TCP on ``host:port`` (port 0: any free port).
 
     Runs on the current event loop; the gripper must be polled by a runner (e.g.
     ``pywsg.server.DeviceRunner``) so motions finish. Raises OSError if the port cannot be bound.
-    At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``).
+    At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``); one
+    sending nothing for ``idle_timeout`` s is closed (None: never).
     """
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
-    cap_modbus_server(server, max_connections)
+    cap_modbus_server(server, max_connections, idle_timeout)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
         ctl.close()

@@ -7,7 +7,8 @@ full. Requests arrive on ``rx_id`` (default 01h), replies and auto-updates leave
 frames across CAN frames exactly as on a serial line (length from the header, CRC checked); a lost
 or reordered fragment fails the CRC (answered E_CHECKSUM_ERROR like any corrupt frame) and the
 parser resynchronises on the next preamble. Other identifiers, remote and error frames are ignored
-(acceptance filter on the bus, checked again per frame). The driver side is
+(acceptance filter on the bus, checked again per frame), and so are CAN FD frames and any frame over
+8 data bytes: the mapping is classic CAN. The driver side is
 :mod:`pywsg.client.can_transport`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
 interface.
 """
@@ -74,7 +75,7 @@ class CanServer:
 
     def _on_message(self, msg: Any) -> None:
         if (msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame
-                or msg.is_extended_id):
+                or msg.is_extended_id or getattr(msg, "is_fd", False) or len(msg.data) > 8):
             self.foreign += 1
             return
         replies = self.gripper.feed(self.session, bytes(msg.data))

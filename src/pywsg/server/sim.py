@@ -311,7 +311,7 @@ class SimServer:
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
                 "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                max_connections=opts.limits.modbus_connections,
+                max_connections=opts.limits.modbus_connections, idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
         web_port = _nth(opts.web_port, i)
@@ -321,6 +321,7 @@ class SimServer:
                 "fieldbus": getattr(sg.modbus, "controller", None),
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
+                "idle_timeout": opts.limits.idle_timeout,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(

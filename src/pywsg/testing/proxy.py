@@ -2,7 +2,7 @@
 
 Bytes are forwarded unchanged and in order the moment they arrive (forwarding comes first, decoding
 after), so the client and the gripper cannot tell the tap is there. Each complete frame is handed to
-a :class:`~pywsg.cli.commlog.CommLog` (one decoded line per frame: time, TX/RX, command, status,
+a :class:`~pywsg.capture.commlog.CommLog` (one decoded line per frame: time, TX/RX, command, status,
 fields) and can be written to a pcapng file (readable by ``wsg decode -f``, ``wsg replay`` and
 Wireshark) as synthetic IPv4 packets between the client's and the gripper's real addresses.
 
@@ -26,7 +26,7 @@ from typing import Any, BinaryIO, Literal, cast
 
 import dpkt
 
-from ..cli.commlog import CommLog, TxRx
+from ..capture.commlog import CommLog, TxRx
 from ..client.url import parse_url
 from ..protocol import ChecksumMismatch, Frame, FrameParser, GarbageSkipped
 from ..protocol.parser import parse_datagram

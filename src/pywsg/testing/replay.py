@@ -66,7 +66,7 @@ class ReplayReport:
 
 def _records(path: Path) -> Iterable[tuple[str, bytes]]:
     """(``tx``/``rx``, frame bytes) in recorded order."""
-    from ..cli.capture import frames_from_capture, is_capture, jsonl_records
+    from ..capture.reader import frames_from_capture, is_capture, jsonl_records
 
     if is_capture(path):
         for c in frames_from_capture(path):

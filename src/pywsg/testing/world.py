@@ -34,18 +34,25 @@ class WorldError(ValueError):
 
 
 def _number(params: Mapping[str, Any], name: str, default: float | None = None) -> float:
+    """A JSON/TOML number: strings are refused (``"2_2"`` is not 22), as by the strict web API."""
     value = params.get(name, default)
     if value is None:
         raise WorldError(name, "missing")
-    if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise WorldError(name, f"must be a number, not {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise WorldError(name, f"must be a number, not {_show(value)}")
     try:
         out = float(value)
-    except ValueError:
-        raise WorldError(name, f"must be a number, not {value!r}") from None
+    except OverflowError:  # a 400-digit integer
+        raise WorldError(name, "must be a finite number") from None
     if not math.isfinite(out):
         raise WorldError(name, "must be a finite number")
     return out
+
+
+def _show(value: Any) -> str:
+    """``repr`` cut short: a refused value may be huge."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 64 else "a huge integer"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _width(gripper: Any, params: Mapping[str, Any]) -> float:

@@ -102,7 +102,7 @@ async def _do(gripper: Any, request: Request, action: str, with_body: bool) -> J
         raw = await request.body()
         try:
             params = json.loads(raw or b"{}")
-        except (ValueError, UnicodeDecodeError):
+        except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting 1,000+ deep
             return _error(422, "invalid input: body is not JSON", {"_": "not JSON"})
         if not isinstance(params, dict):
             return _error(422, "invalid input: body must be a JSON object", {"_": "not an object"})

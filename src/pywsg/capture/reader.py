@@ -15,7 +15,7 @@ from __future__ import annotations
 import ipaddress
 import re
 import struct
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
@@ -385,59 +385,3 @@ def frames_from_capture(path: str | Path, ports: Collection[int] | None = None) 
     out.extend(ex.finish())
     return out
 
-
-# --- the ``wsg decode --file`` front end -------------------------------------------------------
-
-def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = False,
-                direction: Direction | None = None) -> int:
-    """Decode a capture, JSON-lines log, hex-dump or binary file and print it; returns the exit status
-    (1 when any frame is bad, truncated or the file cannot be read)."""
-
-    import click
-
-    try:
-        if is_jsonl(path):
-            logged = frames_from_jsonl(path, direction)
-            _print_framed(logged, as_json, "no WSG frames in the log")
-            decoded = [f.decoded for f in logged]
-        elif is_capture(path):
-            captured = frames_from_capture(path, ports or None)
-            if direction is not None:
-                for c in captured:
-                    if c.decoded.command_id is not None and not c.decoded.error:
-                        c.decoded = decode_bytes(c.decoded.raw, direction)[0]
-            _print_framed(captured, as_json, "no WSG frames in the capture")
-            decoded = [c.decoded for c in captured]
-        else:
-            data = bytes_from_file(path)
-            if not data:
-                click.echo(f"error: {path}: no bytes", err=True)
-                return 1
-            decoded = decode_bytes(data, direction)
-            from .decode import emit
-
-            emit(decoded, as_json)
-    except BrokenPipeError:
-        raise  # the reader went away (`| head`): click leaves quietly
-    except (OSError, ValueError) as exc:
-        click.echo(f"error: {path}: {exc}", err=True)
-        return 1
-    return 1 if any(d.error or d.checksum_ok is False for d in decoded) else 0
-
-
-def _print_framed(frames: Sequence[LoggedFrame | CapturedFrame], as_json: bool, none: str) -> None:
-    """Print frames with a header line each (time, direction), or as one JSON list."""
-    import json
-
-    import click
-
-    if as_json:
-        click.echo(json.dumps([f.to_json() for f in frames], indent=2, ensure_ascii=False))
-        return
-    for i, f in enumerate(frames):
-        if i:
-            click.echo()
-        click.echo(f.header())
-        click.echo("\n".join(f.decoded.lines()))
-    if not frames:
-        click.echo(none, err=True)
