@@ -239,7 +239,7 @@ def test_grip_part_too_big_for_clamping_travel_is_no_part(homed: Rig) -> None:
 def test_inside_grip_opens_onto_the_part(homed: Rig) -> None:
     homed.status(0x21, flags=0, width=10.0, speed=100.0)
     homed.run(5)
-    homed.g.faults.place_part(40.0)  # a ring around the fingers
+    homed.g.faults.place_part(40.0, inside=True)  # a ring around the fingers
     homed.status(0x25, width=40.0, speed=80.0)
     assert [f.status for f in homed.run(5)] == [S.E_SUCCESS]
     assert homed.gstate() == GripperState.HOLDING
@@ -349,12 +349,11 @@ def test_state_queries_need_flags_and_period(rig: Rig, cid: int) -> None:
 def test_statistics_and_reset(homed: Rig) -> None:
     homed.status(0x25, width=30.0, speed=100.0)
     homed.run(5)  # no part
-    homed.g.faults.place_part(50.0)
+    homed.g.faults.place_part(50.0, inside=True)
     homed.status(0x25, width=50.0, speed=100.0)  # fingers at 25 open onto a ring of 50 mm
     homed.run(5)
     assert homed.gstate() == GripperState.HOLDING
     homed.g.faults.remove_part()
-    homed.run(1)  # the fingers run on through the clamping travel, then PART_LOST (000 §3.4.2)
     assert homed.gstate() == GripperState.PART_LOST
     assert homed.value(0x42, flags=0) == {"total": 2, "no_part": 1, "lost_part": 1}
     assert homed.value(0x42, flags=1)["total"] == 2

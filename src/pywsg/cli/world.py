@@ -141,11 +141,15 @@ def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None
 @world.command("part")
 @json_option
 @click.argument("width", type=float, required=False)
-@click.option("--stiffness", type=float, default=None, help="Part stiffness in N/mm (default: firm plastic).")
+@click.option("--stiffness", type=float, default=None,
+              help="Part stiffness in N/mm (default: rigid, a held part reads its own width).")
+@click.option("--inside/--outside", default=False, show_default=True,
+              help="Grip it from inside (a ring around the fingers, they open onto it) or from outside "
+                   "(between the fingers, they close onto it; the default).")
 @click.option("--remove", is_flag=True, help="Take the part away.")
 @click.pass_context
-def part(ctx: click.Context, width: float | None, stiffness: float | None, remove: bool) -> None:
-    """Put a part of WIDTH mm between the fingers (or --remove it)."""
+def part(ctx: click.Context, width: float | None, stiffness: float | None, inside: bool, remove: bool) -> None:
+    """Put a part of WIDTH mm between the fingers (--inside: a ring around them), or --remove it."""
     if remove:
         if width is not None:
             raise click.UsageError("give WIDTH or --remove, not both")
@@ -153,7 +157,7 @@ def part(ctx: click.Context, width: float | None, stiffness: float | None, remov
         return
     if width is None:
         raise click.UsageError("give the part's WIDTH in mm (or --remove)")
-    body: dict[str, Any] = {"width": width}
+    body: dict[str, Any] = {"width": width, "inside": inside}
     if stiffness is not None:
         body["stiffness"] = stiffness
     _run(ctx, "POST", "/part", body)

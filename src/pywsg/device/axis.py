@@ -49,8 +49,7 @@ stop's width and direction), ``soft`` (data: the soft limit's width), ``timeout`
 class Motion:
     """The motion in progress and what to answer when it ends.
 
-    ``kind``: homing, prepos, grip, release, jog, script, lost (part lost: fingers run on to the
-    end of the clamping travel), snap (obstacle removed while clamping).
+    ``kind``: homing, prepos, grip, release, jog, script, snap (obstacle removed while clamping).
     """
 
     kind: str
@@ -243,8 +242,6 @@ class Axis:
                 self._finish_with(m, S.E_CMD_FAILED)
             elif m.kind == "jog" or m.kind == "script":
                 self.gstate = GS.IDLE
-            elif m.kind == "lost":
-                self._part_lost(t)
         elif kind == "timeout":
             self.contact = None  # the drive gives up pushing
             self.motion = None
@@ -260,8 +257,6 @@ class Axis:
     # ------------------------------------------------------------------ starting and stopping
 
     def start(self, now: float, motion: Motion, traj: Trajectory) -> None:
-        if self.motion is not None and self.motion.kind == "lost":
-            self._part_lost(now)  # 21h/25h/26h take over from the run-on (000 §3.4.2)
         held = self.contact
         self.blocked_at_start = None
         if held is not None and held.kind == "hold" and motion.direction == held.direction and motion.kind != "grip":
@@ -292,12 +287,9 @@ class Axis:
     def abort(self, status: Status, now: float) -> bool:
         """Stop a running motion (or clamping); returns True if one was running."""
         was = self.motion is not None
-        lost = was and self.motion is not None and self.motion.kind == "lost"
         self.halt(now)
         if was:
             self.finish(status)
-        if lost:
-            self._part_lost(now)
         if self.contact is not None and self.contact.kind != "hold":
             self.contact = None
         self.update_load(now)
@@ -342,8 +334,6 @@ class Axis:
             self.gstate = GS.NO_PART
             self.stats[1] += 1
             self._finish_with(m, S.E_CMD_FAILED)
-        elif m.kind == "lost":
-            self._part_lost(t)
         else:  # jog: cannot end by itself
             self.gstate = GS.IDLE
 
@@ -392,13 +382,11 @@ class Axis:
                 self.gstate = GS.IDLE
             else:
                 self._finish_with(m, S.E_AXIS_BLOCKED)
-        elif m.kind in ("lost", "snap"):
+        elif m.kind == "snap":
             self.motion = None
-            if m.kind == "lost":
-                self._part_lost(t)
 
     def _part_lost(self, t: float) -> None:
-        """The run-on after a part was removed ended (or was superseded): 41h PART_LOST, counted (42h)."""
+        """The part was removed while held: 41h PART_LOST, counted (42h), logged."""
         self.gstate = GS.PART_LOST
         self.stats[2] += 1
         self.log.add(t, LogLevel.WARNING, f"part lost at {self.traj.position(t):.2f} mm")
@@ -431,17 +419,11 @@ class Axis:
             x = self.traj.position(now)
             self.bits &= ~SF_BLOCKED
             if c.kind == "hold":
-                # The part monitor finds the loss as the grip finds no part (000 §3.2.6): the fingers
-                # run on to the end of the grip's clamping travel (or one travel further); PART_LOST
-                # when they stop there, at rest, so 21h/25h/26h follow at once (docs/fidelity.md).
-                self.log.add(now, LogLevel.INFO, f"part removed at {x:.2f} mm: gripping force lost")
-                travel = self.clamping_travel
-                end = c.nominal + c.direction * travel
-                if (end - x) * c.direction <= 0:
-                    end = x + c.direction * travel
-                end = min(max(end, 0.0), self.profile.stroke)
-                self.motion = Motion("lost", None, None, end, self.profile.max_speed / 4, c.direction)
-                self.traj = plan_move(now, x, end, self.motion.speed, self.acceleration)
+                # The part monitor sees the gripping force go and stops the drive where the fingers are:
+                # PART_LOST at rest, so the 21h/25h/26h that 000 §3.4.2 names follow at once
+                # (docs/fidelity.md "A lost part")
+                self.halt(now)
+                self._part_lost(now)
             elif c.kind == "clamp":
                 self.motion = Motion("snap", None, None, c.target, c.speed, c.direction)
                 self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)

@@ -76,9 +76,7 @@ def _refused(g: DeviceCore, cid: int, width: float, speed: float, now: float) ->
     (E_ACCESS_DENIED), a motion running (E_ALREADY_RUNNING), not referenced (E_NOT_INITIALIZED)."""
     if not (math.isfinite(width) and math.isfinite(speed)):
         return Frame.reply(cid, S.E_INVALID_PARAMETER)
-    # the fingers' run-on after a lost part is no command of the client's: the three commands that
-    # 000 §3.4.2 names to follow PART_LOST take over from it
-    denied = g.motion_denied(now, replaces=("lost",))
+    denied = g.motion_denied(now)
     return None if denied is None else Frame.reply(cid, denied)
 
 
@@ -125,7 +123,7 @@ def preposition(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     axis.gstate = GS.POSITIONING  # leaving a held part: start_motion lets go of it (or meets it)
     g.start_motion(now, Motion("prepos", s, 0x21, target, v, d,
                                stop_on_block=bool(flags & PrepositionFlag.STOP_ON_BLOCK)),
-                   plan_move(now, x, target, v, axis.acceleration, v0=axis.traj.velocity(now)))
+                   plan_move(now, x, target, v, axis.acceleration))
     return Frame.reply(0x21, S.E_CMD_PENDING)
 
 
@@ -182,7 +180,7 @@ def grip(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     elif touching is not None and touching.blocks == d:
         x -= d * 1e-6  # start just off the surface so that the contact is seen
     g.start_motion(now, Motion("grip", s, 0x25, target, v, d, nominal=nominal),
-                   plan_move(now, x, target, v, axis.acceleration, v0=axis.traj.velocity(now)))
+                   plan_move(now, x, target, v, axis.acceleration))
     return Frame.reply(0x25, S.E_CMD_PENDING)
 
 
@@ -200,7 +198,7 @@ def release(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     v = g.profile.clamp_speed(speed)
     d = 1 if target >= x else -1
     axis.gstate = GS.RELEASING
-    traj = plan_move(now, x, target, v, axis.acceleration, v0=axis.traj.velocity(now))
+    traj = plan_move(now, x, target, v, axis.acceleration)
     # 000 §3.2.7 lists E_TIMEOUT, not E_AXIS_BLOCKED: a blocked release pushes on until its deadline
     g.start_motion(now, Motion("release", s, 0x26, target, v, d, deadline=traj.end_time + MOTION_TIMEOUT_S), traj)
     return Frame.reply(0x26, S.E_CMD_PENDING)
