@@ -262,6 +262,8 @@ def test_release_statuses(homed: Rig) -> None:
 
 # 3.3 motion configuration
 def test_acceleration_set_get_clamped(rig: Rig) -> None:
+    assert rig.value(0x31)["acceleration"] == 5000.0  # the default (docs/fidelity.md)
+    assert rig.status(0x30, acceleration=150.0) == S.E_SUCCESS
     assert rig.value(0x31)["acceleration"] == 150.0
     assert rig.status(0x30, acceleration=1e6) == S.E_SUCCESS
     assert rig.value(0x31)["acceleration"] == 5000.0
@@ -272,7 +274,8 @@ def test_acceleration_set_get_clamped(rig: Rig) -> None:
 
 
 def test_get_acceleration_reply_bytes_match_manual_example(rig: Rig) -> None:
-    # manual 1.2.2 example 3: E_SUCCESS + 150.0 (00 00 16 43)
+    # manual 1.2.2 example 3: E_SUCCESS + 150.0 (00 00 16 43), once 150 mm/s² is set (30h)
+    assert rig.status(0x30, acceleration=150.0) == S.E_SUCCESS
     assert rig.call(0x31).payload == bytes.fromhex("0000 00001643")
 
 
