@@ -15,6 +15,7 @@ JSON form: one object per line (JSON Lines) with ``time`` (Unix seconds), ``dire
 
 from __future__ import annotations
 
+import collections
 import datetime as _dt
 import json
 import sys
@@ -53,7 +54,8 @@ class LogEntry:
         return format_line(self, hex_width)
 
 
-def _clock(t: float) -> str:
+def wall_clock(t: float) -> str:
+    """Unix seconds as local time of day with microseconds, ``19:44:34.052109`` (every log's style)."""
     return _dt.datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")
 
 
@@ -75,7 +77,7 @@ def format_line(entry: LogEntry, hex_width: int = 0) -> str:
     d = entry.decoded
     cid = f"{d.command_id:02X}h" if d.command_id is not None else "--"
     hexed = d.raw.hex(" ").upper()
-    return (f"{_clock(entry.time)} {_ARROW[entry.direction]} {cid} {d.command:<24} "
+    return (f"{wall_clock(entry.time)} {_ARROW[entry.direction]} {cid} {d.command:<24} "
             f"{hexed:<{hex_width}}  {summary(d)}").rstrip()
 
 
@@ -92,13 +94,14 @@ class CommLog:
     """A sink for frames: writes text lines and/or JSON lines, and calls listeners.
 
     ``record(direction, frame)`` is what a transport tap calls for every frame it sends or receives.
-    Thread-safe (the sync driver runs its loop in another thread).
+    ``entries`` keeps only the last ``keep`` entries (a long capture streams to the files, not to
+    memory). Thread-safe (the sync driver runs its loop in another thread).
     """
 
-    def __init__(self, text: TextIO | None = None, jsonl: TextIO | None = None) -> None:
+    def __init__(self, text: TextIO | None = None, jsonl: TextIO | None = None, keep: int = 1000) -> None:
         self.text = text
         self.jsonl = jsonl
-        self.entries: list[LogEntry] = []
+        self.entries: collections.deque[LogEntry] = collections.deque(maxlen=keep)
         self.listeners: list[Callable[[LogEntry], None]] = []
         self._lock = threading.Lock()
 
@@ -125,7 +128,7 @@ class CommLog:
         t = time.time() if when is None else when
         with self._lock:
             if self.text is not None:
-                self.text.write(f"{_clock(t)} {_ARROW[direction]} -- {message}\n")
+                self.text.write(f"{wall_clock(t)} {_ARROW[direction]} -- {message}\n")
                 self.text.flush()
             if self.jsonl is not None:
                 self.jsonl.write(json.dumps({"time": round(t, 6), "direction": direction, "error": message}) + "\n")

@@ -26,6 +26,7 @@ from ..protocol import Frame, FrameParser, FrameTooLarge, GarbageSkipped
 from ..protocol.crc import crc16
 from ..protocol.decode import DecodedFrame, Direction, decode_bytes, decode_frame, parse_hex
 from ..protocol.frame import OVERHEAD
+from .commlog import wall_clock
 
 __all__ = [
     "DEFAULT_PORTS", "CapturedFrame", "LoggedFrame", "bytes_from_file", "frames_from_capture", "frames_from_jsonl",
@@ -55,7 +56,7 @@ class CapturedFrame:
                 **self.decoded.to_json()}
 
     def header(self) -> str:
-        return f"{self.time:.6f} {self.transport.upper()} {self.src} -> {self.dst}"
+        return f"{wall_clock(self.time)} {self.transport.upper()} {self.src} -> {self.dst}"
 
 
 def is_capture(path: str | Path) -> bool:
@@ -78,7 +79,7 @@ class LoggedFrame:
 
     def header(self) -> str:
         way = "client -> gripper" if self.direction == "tx" else "gripper -> client"
-        return f"{self.time:.6f} {self.direction.upper()} ({way})"
+        return f"{wall_clock(self.time)} {self.direction.upper()} ({way})"
 
 
 def is_jsonl(path: str | Path) -> bool:

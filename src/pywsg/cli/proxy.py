@@ -31,11 +31,14 @@ def _open_jsonl(path: Path) -> TextIO:
               help="Write the exchange as pcapng (wsg decode -f, wsg replay, Wireshark read it).")
 @click.option("--jsonl", "jsonl", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write one JSON object per frame (wsg log and wsg replay read it).")
+@click.option("--log-rate", type=click.IntRange(0, 10**6), default=1000, show_default=True, metavar="N",
+              help="Frames a second at most in the printed/--jsonl log (0: all); one line a second says "
+                   "what was left out. The --pcap file always has every byte.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON lines instead of text lines.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing per frame (files only).")
 @click.pass_context
 def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl: Path | None,
-          as_json: bool, quiet: bool) -> None:
+          log_rate: int, as_json: bool, quiet: bool) -> None:
     """Forward a client's traffic to a gripper unchanged and show every frame.
 
     Point your own client (ROS node, PLC, script) at the --listen port instead of the gripper. Bytes
@@ -76,7 +79,7 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
     else:
         log = CommLog(text=sys.stdout, jsonl=jsonl_file)
     try:
-        tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap)
+        tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap, log_rate=log_rate)
     except (ValueError, OSError) as exc:
         if jsonl_file is not None:
             jsonl_file.close()
@@ -101,7 +104,8 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
             await tap.close()
             s = tap.stats
             click.echo(f"stopped: {s.connections} client(s), {s.frames['tx']} request(s), "
-                       f"{s.frames['rx']} reply frame(s)", err=True)
+                       f"{s.frames['rx']} reply frame(s)"
+                       + (f", {s.not_logged} not logged (over --log-rate)" if s.not_logged else ""), err=True)
 
     try:
         asyncio.run(main())

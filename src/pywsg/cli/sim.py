@@ -1,10 +1,9 @@
-"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP and the web."""
+"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP, PROFIBUS DP and the web."""
 
 from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import re
 from pathlib import Path
 from typing import Any
@@ -39,6 +38,15 @@ MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
 
 def _serial(value: str) -> str | None:
     return None if value.lower() in ("0", "off", "none", "") else value
+
+
+def _scaled_clock(k: float) -> Any:
+    """A :class:`~pywsg.device.ScaledClock` for ``--time-scale K`` (None: real time)."""
+    if k == 1:
+        return None
+    from ..device.clock import ScaledClock
+
+    return ScaledClock(k)
 
 
 def _run(coro: Any, use_uvloop: bool | None) -> Any:
@@ -92,6 +100,13 @@ def _json_line(line: str) -> str:
               help="CAN bit rate for a hardware interface (ignored by the virtual bus).")
 @click.option("--modbus-port", type=PORT, default="off", show_default=True,
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
+@click.option("--profibus", "profibus_line", default="off", show_default=True, metavar="pty|PATH|off",
+              help="PROFIBUS DP slave (Ident 5555h, WEIS5555.gsd): a new pseudo-terminal for a master on this "
+              "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
+@click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
+              help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
+@click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450, 93750); nominal on a pty.")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
@@ -108,6 +123,10 @@ def _json_line(line: str) -> str:
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
+@click.option("--time-scale", "time_scale", type=click.FloatRange(min=0, min_open=True, max=1e6), default=1.0,
+              show_default=True, metavar="K",
+              help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
+              "periods and scenarios (the network and clients' timeouts are not scaled).")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
 @click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
@@ -136,6 +155,9 @@ def sim(
     can_tx_id: int,
     can_bitrate: int,
     modbus_port: int | None,
+    profibus_line: str,
+    profibus_address: int | None,
+    profibus_baudrate: int,
     web_port: int | None,
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
@@ -143,6 +165,7 @@ def sim(
     idle_timeout: float,
     settings_file: Path | None,
     count: int,
+    time_scale: float,
     use_uvloop: bool | None,
     part_width: float | None,
     block_width: float | None,
@@ -161,11 +184,21 @@ def sim(
     from ..server.limits import Limits
     from ..server.sim import SimError, SimOptions, run_sim
 
+    profibus = _serial(profibus_line)
+    if profibus is not None:
+        from ..fieldbus.profibus.line import check_baudrate
+
+        try:
+            check_baudrate(profibus_baudrate)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--profibus-baudrate") from None
+
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
     if level:
-        logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
-        logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
+        from .main import configure_logging
+
+        configure_logging(min(level, 2))
 
     web = web_port
     if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
@@ -193,9 +226,13 @@ def sim(
         can_tx_id=can_tx_id,
         can_bitrate=can_bitrate,
         modbus_port=modbus_port,
+        profibus=profibus,
+        profibus_address=profibus_address,
+        profibus_baudrate=profibus_baudrate,
         web_port=web,
         settings=settings_file,
         count=count,
+        clock=_scaled_clock(time_scale),
         limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
                       idle_timeout=idle_timeout),
         web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},

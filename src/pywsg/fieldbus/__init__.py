@@ -4,7 +4,7 @@
 - :mod:`.controller` — :class:`FieldbusController`: edges, jog levels, FAST STOP rules on a virtual gripper.
 - :mod:`.modbus` — ``serve_modbus(gripper, host, port)``: the image over Modbus/TCP (pymodbus 3.13.1 … 3.16).
 - :mod:`.plc` — :class:`FieldbusGripper`: the PLC side, a Modbus/TCP master with the same edge semantics.
-- :mod:`.profibus` — PROFIBUS diagnosis message and image bytes as plain functions.
+- :mod:`.profibus` — PROFIBUS DP-V0 slave (FDL, DP state machine, serial line), GSD facts, diagnosis message.
 """
 
 from __future__ import annotations

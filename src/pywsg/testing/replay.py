@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import socket
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +25,9 @@ from ..protocol import Command, Frame, FrameParser
 from ..protocol.decode import DecodedFrame, decode_bytes, decode_frame
 
 __all__ = ["Difference", "ReplayReport", "Step", "load_steps", "replay"]
+
+IDLE_WAIT = 0.02
+"""Seconds of real time without a reply before ``replay(idle=...)`` calls ``idle`` (manual clocks)."""
 
 
 @dataclass
@@ -100,7 +103,8 @@ def load_steps(path: str | Path) -> list[Step]:
 
 
 class _Link:
-    def __init__(self, url: str, timeout: float) -> None:
+    def __init__(self, url: str, timeout: float, idle: Callable[[], None] | None = None) -> None:
+        self.idle = idle
         ep = parse_url(url)
         if ep.scheme not in ("tcp", "udp"):
             raise ValueError(f"replay needs tcp:// or udp://, not {ep.scheme}://")
@@ -136,10 +140,13 @@ class _Link:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
-            self.sock.settimeout(left)
+            self.sock.settimeout(min(left, IDLE_WAIT) if self.idle is not None else left)
             try:
                 data = self.sock.recv(65536)
             except TimeoutError:
+                if self.idle is not None:
+                    self.idle()  # a manual clock: move time on so the motion can end
+                    continue
                 break
             if not data:
                 break
@@ -168,19 +175,21 @@ def _compare(i: int, st: Step, rec: DecodedFrame, got: DecodedFrame, tol: float,
             diff(a.name, a.text, b.text)
 
 
-def replay(path: str | Path, url: str, tolerance: float = 0.5, timeout: float = 10.0) -> ReplayReport:
+def replay(path: str | Path, url: str, tolerance: float = 0.5, timeout: float = 10.0,
+           idle: Callable[[], None] | None = None) -> ReplayReport:
     """Send the recorded requests of ``path`` to the gripper at ``url``; compare what comes back.
 
     ``tolerance``: largest difference of a measured (floating-point) value, in the field's unit.
     ``timeout``: longest wait for one request's replies, s (a motion's final reply included).
+    ``idle``: called whenever no reply came for ``IDLE_WAIT`` s (a host moves a manual clock on).
     """
     steps = load_steps(path)
     report = ReplayReport(steps=len(steps))
-    link = _Link(url, timeout)
+    link = _Link(url, timeout, idle)
     try:
         for i, st in enumerate(steps, 1):
             if link.sock.fileno() < 0:  # the recorded client disconnected (07h) and came back
-                link = _Link(url, timeout)
+                link = _Link(url, timeout, idle)
             link.send(st.request)
             got = link.receive(st.command_id, len(st.replies))
             report.replies += len(got)

@@ -317,6 +317,8 @@ async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> 
     """Serve ``runner``'s timed actions on the running loop at their times (real clock); cancel to stop."""
     import asyncio
 
+    from ..device.clock import real_seconds
+
     wake = asyncio.Event()
     runner.on_queue = wake.set
     try:
@@ -326,7 +328,7 @@ async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> 
             if due is None:
                 await wake.wait()
                 continue
-            delay = due - clock()
+            delay = real_seconds(clock, due - clock())  # a scaled clock runs faster than real time
             if delay > 0:
                 try:
                     await asyncio.wait_for(wake.wait(), delay)

@@ -14,13 +14,16 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from . import world_faults
+
 __all__ = ["ACTIONS", "FAULT_KINDS", "WorldError", "apply", "world_state"]
 
-FAULT_KINDS = ("power", "current", "finger")
+FAULT_KINDS = ("power", "current", "finger", "ack", "watchdog", "unplugged")
 """Faults that can be switched on and off (command manual 000 Appendix B flags SF_POWER_FAULT,
-SF_CURR_FAULT, SF_FINGER_FAULT)."""
+SF_CURR_FAULT, SF_FINGER_FAULT; acknowledge refused, the silent-client watchdog and an unplugged
+finger: :mod:`pywsg.testing.world_faults`)."""
 
-ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat")
+ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat", "slip", "disconnect", "net")
 """Names of the world actions (also the ``do`` key of a scenario event)."""
 
 
@@ -86,10 +89,12 @@ def _on(params: Mapping[str, Any]) -> bool:
 def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) -> str:
     """Carry out one world ``action`` on ``gripper``; returns what was done, in words.
 
-    ``action``/``params``: ``part`` (width, stiffness=None, inside=False: gripped from outside),
-    ``remove_part``, ``block`` (width),
-    ``unblock``, ``fault`` (kind: power|current|finger, on=True, finger=1|2 for kind finger),
-    ``heat`` (delta_c). Raises :class:`WorldError` for bad parameters.
+    ``action``/``params``: ``part`` (width, stiffness=None, inside=False: gripped from outside unless
+    True), ``remove_part``, ``block`` (width),
+    ``unblock``, ``fault`` (kind: power|current|finger|ack|watchdog|unplugged, on=True, finger=1|2
+    for finger and unplugged, timeout=s for watchdog), ``heat`` (delta_c), ``slip`` (duration=s: the
+    part slides out), ``disconnect`` (the gripper closes its connections), ``net`` (kind: a network fault of
+    :mod:`pywsg.server.netfault` or ``clear``, on=True, its parameters). Raises :class:`WorldError`.
     """
     p: Mapping[str, Any] = params or {}
     faults = getattr(gripper, "faults", None)
@@ -123,7 +128,15 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
             faults.heat(delta)
             return f"temperature changed by {delta:+g} °C"
         if action == "fault":
-            return _fault(faults, p)
+            return _fault(faults, p, gripper)
+        if action == "slip":
+            return world_faults.slip(gripper, _seconds(p, "duration", 1.0))
+        if action == "disconnect":
+            return world_faults.interrupt(gripper)
+        if action == "net":
+            return _net(gripper, p)
+        if action == "net_clear":
+            return _net(gripper, {"kind": "clear"})
     except WorldError:
         raise
     except ValueError as exc:  # the device names the field: "width: must be ..."
@@ -132,10 +145,43 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     raise WorldError("action", f"unknown world action {action!r} (one of {', '.join(ACTIONS)})")
 
 
-def _fault(faults: Any, p: Mapping[str, Any]) -> str:
+def _seconds(p: Mapping[str, Any], name: str, default: float) -> float:
+    value = _number(p, name, default)
+    if value < 0:
+        raise WorldError(name, f"must be a non-negative number of seconds, not {value:g}")
+    return value
+
+
+def _finger(p: Mapping[str, Any]) -> int:
+    finger = int(_number(p, "finger", 1))
+    if finger not in (1, 2):
+        raise WorldError("finger", f"must be 1 or 2, not {finger}")
+    return finger
+
+
+def _net(gripper: Any, p: Mapping[str, Any]) -> str:
+    from ..server.netfault import NetFaultError, net_faults
+
+    kind = str(p.get("kind", ""))
+    nf = net_faults(gripper)
+    if kind == "clear":
+        return nf.clear()
+    try:
+        return nf.set(kind, {k: v for k, v in p.items() if k != "kind"})
+    except NetFaultError as exc:
+        raise WorldError(exc.field, exc.reason) from None
+
+
+def _fault(faults: Any, p: Mapping[str, Any], gripper: Any = None) -> str:
     kind = str(p.get("kind", ""))
     on = _on(p)
     state = "on" if on else "off"
+    if kind == "ack":
+        return world_faults.acknowledge_refused(gripper, on)
+    if kind == "watchdog":
+        return world_faults.watchdog(gripper, _seconds(p, "timeout", 1.0) if on else None)
+    if kind == "unplugged":
+        return world_faults.unplug_finger(gripper, _finger(p) - 1, on)
     if kind == "power":
         faults.power_fault(on)
         return f"power fault {state}"
@@ -162,6 +208,7 @@ def world_state(gripper: Any) -> dict[str, Any]:
           if getattr(gripper, attr, False)]
     on += [f"finger {i + 1}" for i, f in enumerate(getattr(gripper, "fingers", ()))
            if getattr(f, "fault", False)]
+    on += world_faults.active(gripper)
     return {
         "time": round(float(snap.time), 6),
         "model": snap.model,
@@ -174,6 +221,7 @@ def world_state(gripper: Any) -> dict[str, Any]:
         "part_inside": _part_inside(gripper),
         "blocked_at": snap.blocked_at,
         "faults": on,
+        "net": _net_state(gripper),
         "statistics": list(snap.statistics),
     }
 
@@ -182,3 +230,9 @@ def _part_inside(gripper: Any) -> bool | None:
     """True for a ring gripped from inside, False for a part gripped from outside, None without a part."""
     part = getattr(gripper, "obstacles", {}).get("part")
     return None if part is None else part.blocks > 0
+
+
+def _net_state(gripper: Any) -> dict[str, Any]:
+    from ..server.netfault import net_faults
+
+    return net_faults(gripper).state()

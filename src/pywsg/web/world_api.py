@@ -10,6 +10,10 @@
     DELETE /api/world/block
     POST   /api/world/fault        {"kind": "power"|"current"|"finger", "on": true, "finger": 1}
     POST   /api/world/heat         {"delta_c": 40.0}
+    POST   /api/world/slip         {"duration": 1.0}                    the held part slides out
+    POST   /api/world/disconnect                                        the gripper closes its connections
+    POST   /api/world/net          {"kind": "latency", "ms": 200, "jitter": 50, "on": true}
+    DELETE /api/world/net                                               every network fault off
 
 Replies are JSON: ``{"ok": true, "action": "part of 22 mm placed (outside, between the fingers)",
 "state": {...}}``; a refused value gives 422 ``{"detail": ..., "errors": {"width": "must be within 0..110 mm ..."}}``.
@@ -122,6 +126,10 @@ _ROUTES = (
     ("DELETE", "/block", "unblock", False),
     ("POST", "/fault", "fault", True),
     ("POST", "/heat", "heat", True),
+    ("POST", "/slip", "slip", True),
+    ("POST", "/disconnect", "disconnect", False),
+    ("POST", "/net", "net", True),
+    ("DELETE", "/net", "net_clear", False),
 )
 
 

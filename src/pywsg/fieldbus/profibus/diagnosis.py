@@ -22,8 +22,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 
-from ..protocol import SystemFlag
-from .image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage, sysstate_bytes, sysstate_from_bytes
+from ...protocol import SystemFlag
+from ..image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage, sysstate_bytes, sysstate_from_bytes
 
 IDENT_NUMBER = 0x5555
 DIAGNOSIS_LENGTH = 0x0A
