@@ -18,9 +18,10 @@ from typing import Any
 
 import httpx
 import pytest
-from fastapi.routing import APIRoute
 
+from pywsg.fieldbus.image import COILS, DISCRETE_INPUTS, INPUT_REGISTERS, OUTPUT_REGISTERS
 from pywsg.protocol import Frame, SystemFlag
+from pywsg.web.pages import PAGES
 
 from ..device.test_reads_change_nothing import READS
 from ..fieldbus.raw_modbus import adu, exchange
@@ -43,12 +44,13 @@ def _device(sim: LiveSim) -> dict[str, Any]:
     return snap
 
 
-def _get_paths(sim: LiveSim) -> list[str]:
-    """Every GET route of the running app without a path parameter (pages and API)."""
-    paths = [r.path for r in sim.web.app.routes
-             if isinstance(r, APIRoute) and "GET" in r.methods and "{" not in r.path]
-    assert "/api/identity" in paths and "/api/state" in paths and "/" in paths
-    return sorted(set(paths))
+def _get_paths(web: httpx.Client) -> list[str]:
+    """Every GET of the web interface without a path parameter: the API's (from the app's own OpenAPI
+    schema), the pages and Help."""
+    spec = web.get("/api/openapi.json").json()
+    api = [p for p, ops in spec["paths"].items() if "get" in ops and "{" not in p]
+    assert "/api/identity" in api and "/api/state" in api and "/api/world" in api
+    return sorted(set(api) | set(PAGES) | {"/", "/help", "/api/openapi.json"})
 
 
 def _read_frame(s: socket.socket) -> Frame:
@@ -62,11 +64,10 @@ def _read_frame(s: socket.socket) -> Frame:
     return Frame(head[3], rest[:size])
 
 
-def test_no_read_by_any_interface_changes_the_gripper(fresh: LiveSim) -> None:
+def _read_everything(fresh: LiveSim, web: httpx.Client) -> None:
     before = _device(fresh)
-    assert not before["flags"] & SystemFlag.SF_CMD_FAILURE and before["tag"] is None
-    with client_for(fresh) as web, socket.create_connection(("127.0.0.1", fresh.tcp.port), timeout=5) as tcp:
-        for path in _get_paths(fresh):
+    with socket.create_connection(("127.0.0.1", fresh.tcp.port), timeout=5) as tcp:
+        for path in _get_paths(web):
             r = web.get(path)
             assert r.status_code < 500, (path, r.status_code)
             assert _device(fresh) == before, f"GET {path} changed the gripper"
@@ -75,12 +76,22 @@ def test_no_read_by_any_interface_changes_the_gripper(fresh: LiveSim) -> None:
             assert _read_frame(tcp).command_id == cid
             assert _device(fresh) == before, f"{cid:02X}h changed the gripper"
         # Modbus/TCP: coils, discrete inputs, holding registers (the PLC's outputs), input registers
-        for fc, count in ((1, 64), (2, 96), (3, 4), (4, 6)):
+        for fc, count in ((1, COILS), (2, DISCRETE_INPUTS), (3, OUTPUT_REGISTERS), (4, INPUT_REGISTERS)):
             (_, pdu) = exchange(fresh.modbus.port, adu(struct.pack(">BHH", fc, 0, count)))[0]
             assert pdu[0] == fc, pdu.hex()
             assert _device(fresh) == before, f"Modbus FC{fc} changed the gripper"
         tcp.sendall(Frame(0x07, b"").encode())  # announced disconnect: no FAST STOP at teardown
         assert _read_frame(tcp).command_id == 0x07
+
+
+def test_no_read_by_any_interface_changes_the_gripper(fresh: LiveSim) -> None:
+    before = _device(fresh)
+    assert not before["flags"] & SystemFlag.SF_CMD_FAILURE and before["tag"] is None
+    web = client_for(fresh)
+    try:
+        _read_everything(fresh, web)
+    finally:
+        web.close()
 
 
 def test_identity_poll_leaves_no_command_failure(fresh: LiveSim) -> None:

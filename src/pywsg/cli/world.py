@@ -72,6 +72,8 @@ def call(sim: str, method: str, path: str, body: dict[str, Any] | None = None, p
 
 def _state_lines(s: dict[str, Any]) -> list[str]:
     part = f"{s['part']:g} mm" if s.get("part") is not None else "none"
+    if s.get("part_inside") is not None:
+        part += " (inside: a ring)" if s["part_inside"] else " (outside)"
     block = f"{s['blocked_at']:g} mm" if s.get("blocked_at") is not None else "none"
     return [
         f"state        {s['gripper_state']}{'  (FAST STOP)' if s.get('fast_stop') else ''}",
@@ -113,7 +115,8 @@ def world(ctx: click.Context, sim: str, password: str | None, as_json: bool) -> 
 
     \b
     Examples:
-      wsg world part 22            a 22 mm part between the fingers
+      wsg world part 22            a 22 mm part between the fingers (gripped from outside)
+      wsg world part 40 --inside   a 40 mm ring around the fingers (gripped from inside)
       wsg world part --remove      take it away (while HOLDING: part lost)
       wsg world block 30           a rigid obstacle at 30 mm; `wsg world unblock`
       wsg world fault power on     supply fault: FAST STOP until `... power off` and an ACK
