@@ -199,19 +199,23 @@ def test_inject_a_part_and_grip_it_to_holding(sim: LiveSim, page: Any, api: http
     api.delete("/api/sim/part")
 
 
+STATE_SELECTOR = "#fb-bus td[data-row='Interface state']"
+STATE = f'document.querySelector("{STATE_SELECTOR}")'
+
+
 def test_fieldbus_monitor_shows_a_modbus_move_live(sim: LiveSim, page: Any, api: httpx.Client) -> None:
     home(sim, api)
     page.goto(sim.url + "/diagnosis/fieldbus")
     page.wait_for_selector("#fb-output tr[data-index='7']")
     # 003 §6 Interface state: no master yet (item 9 of issue 15 replaced the constant "Online")
-    page.wait_for_function("document.getElementById('fb-state').dataset.state === 'waiting'")
+    page.wait_for_function(f"{STATE} && {STATE}.textContent.startsWith('Waiting')")
     assert page.locator("#fb-output tbody tr").count() == 8
     assert page.locator("#fb-input tbody tr").count() == 12
     image = OutputImage.from_units(CmdFlag.MOVE, width_mm=30.0, speed_mm_s=40.0, force_n=25.0, if_flags=0x40)
     with ModbusTcpClient("127.0.0.1", port=sim.modbus.port) as mb:
         assert not mb.write_registers(0, image.registers()).isError()
         page.wait_for_function("document.querySelector('#fb-output tr[data-index=\"0\"] td.hex').innerText == '01h'")
-        assert page.inner_text("#fb-state").startswith("Online: 1 master connected")
+        assert page.inner_text(STATE_SELECTOR).startswith("Online: 1 master connected")
         assert page.inner_text("#fb-output tr[data-index='1'] td.hex") == "40h"
         assert page.inner_text("#fb-output td[data-register='Width']") == "30.00 mm"
         assert page.inner_text("#fb-output td[data-register='Speed']") == "40.00 mm/s"

@@ -100,13 +100,20 @@ def _json_line(line: str) -> str:
               help="CAN bit rate for a hardware interface (ignored by the virtual bus).")
 @click.option("--modbus-port", type=PORT, default="off", show_default=True,
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
+@click.option("--profinet", "profinet_iface", default=None, metavar="IFACE",
+              help="PROFINET IO device on this network interface (a spare NIC to a PLC, or a veth/bridge to a "
+              "soft PLC; needs root or CAP_NET_RAW; see docs/fieldbus.md). The host's addresses are not changed.")
+@click.option("--profinet-name", default=None, metavar="NAME",
+              help="PROFINET NameOfStation (default: the stored one; else unnamed until a controller sets it by DCP).")
+@click.option("--profinet-ip", default=None, metavar="IP/PREFIX[,GATEWAY]",
+              help="PROFINET IP suite, e.g. 192.168.0.20/24 (default: the stored one; else none until set by DCP).")
 @click.option("--profibus", "profibus_line", default="off", show_default=True, metavar="pty|PATH|off",
               help="PROFIBUS DP slave (Ident 5555h, WEIS5555.gsd): a new pseudo-terminal for a master on this "
               "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
 @click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
               help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
 @click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
-              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450, 93750); nominal on a pty.")
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450); nominal on a pty.")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
@@ -155,6 +162,9 @@ def sim(
     can_tx_id: int,
     can_bitrate: int,
     modbus_port: int | None,
+    profinet_iface: str | None,
+    profinet_name: str | None,
+    profinet_ip: str | None,
     profibus_line: str,
     profibus_address: int | None,
     profibus_baudrate: int,
@@ -178,6 +188,12 @@ def sim(
     Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
     sockets closed). With --count N, gripper i listens on each given port + i.
     """
+    if profinet_name is not None:
+        from ..fieldbus.profinet.station import name_error
+
+        problem = name_error(profinet_name)
+        if problem:
+            raise click.BadParameter(f"{profinet_name!r}: {problem}", param_hint="--profinet-name")
     if can_rx_id == can_tx_id:
         raise click.BadParameter(f"0x{can_tx_id:X} is also --can-rx-id: requests and replies need their own "
                                  "identifiers", param_hint="--can-tx-id")
@@ -226,6 +242,9 @@ def sim(
         can_tx_id=can_tx_id,
         can_bitrate=can_bitrate,
         modbus_port=modbus_port,
+        profinet=profinet_iface,
+        profinet_name=profinet_name,
+        profinet_ip=profinet_ip,
         profibus=profibus,
         profibus_address=profibus_address,
         profibus_baudrate=profibus_baudrate,

@@ -96,9 +96,13 @@ def _net_text(net: dict[str, Any]) -> str:
 def _show(ctx: click.Context, reply: dict[str, Any]) -> None:
     if ctx.obj["world_json"]:
         click.echo(json.dumps(reply, ensure_ascii=False))
+    elif "action" in reply and "gripper_state" not in reply.get("state", {}):
+        click.echo(reply["action"])  # a wsg proxy --control: network faults only
     elif "action" in reply:
         click.echo(f"{reply['action']}; gripper {reply['state']['gripper_state']} "
                    f"at {reply['state']['width']:g} mm")
+    elif "gripper_state" not in reply:
+        click.echo(f"network      {_net_text(reply.get('net') or {})}")
     else:
         click.echo("\n".join(_state_lines(reply)))
 

@@ -34,6 +34,7 @@ class AWaiter(Waiter):
         self.error = None
         self.done = False
         self.ghost_until = 0.0
+        self.robbed = False
         self.final = final
         self.deadline = 0.0
         self.timeout = 0.0

@@ -69,6 +69,12 @@ class SimOptions:
     can_bitrate: int = 500_000
     """Bit rate in bit/s for a hardware CAN interface (the virtual bus has none)."""
     modbus_port: int | None = None
+    profinet: str | None = None
+    """Network interface for the PROFINET IO device (needs root or CAP_NET_RAW); None: off."""
+    profinet_name: str | None = None
+    """PROFINET NameOfStation; None: the stored (permanent) one, else unnamed until a DCP Set."""
+    profinet_ip: str | None = None
+    """PROFINET IP suite ``IP/PREFIX`` or ``IP/MASK``; None: the stored one, else none until a DCP Set."""
     profibus: str | None = None
     """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
     profibus_address: int | None = None
@@ -155,12 +161,23 @@ class SimGripper:
     serial: SerialServer | None = None
     can: CanServer | None = None
     modbus: Any = None
+    profinet: Any = None
     profibus: Any = None
-    controller: Any = None
-    """The gripper's one FieldbusController, shared by Modbus/TCP and PROFIBUS."""
+    controller: Any = None   # the one FieldbusController every bus of this gripper feeds
+    """The gripper's one FieldbusController, shared by Modbus/TCP, PROFINET and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
+
+    def fieldbus_controller(self) -> Any:
+        """The gripper's one :class:`~pywsg.fieldbus.controller.FieldbusController` (``controller``),
+        made when its first bus starts; Modbus/TCP, PROFINET and PROFIBUS adapters all receive it."""
+        if self.controller is None:
+            from ..fieldbus.controller import FieldbusController
+
+            device: Any = self.gripper   # a VirtualGripper (GripperLike is what the transports need)
+            self.controller = FieldbusController(device)
+        return self.controller
 
     @property
     def tcp_port(self) -> int | None:
@@ -199,6 +216,8 @@ class SimGripper:
             out["can"] = self.can.address
         if self.modbus is not None:
             out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
+        if self.profinet is not None:
+            out["profinet"] = self.profinet.url()
         if self.profibus is not None:
             out["profibus"] = self.profibus.url
         return out
@@ -218,6 +237,8 @@ class SimGripper:
             out.append(f"{tag}CAN      {self.can.address} (inferred mapping)")
         if self.modbus is not None:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
+        if self.profinet is not None:
+            out.append(f"{tag}PROFINET {self.profinet.line()}")
         if self.profibus is not None:
             out.append(f"{tag}PROFIBUS {self.profibus.url}")
         if self.web is not None:
@@ -233,7 +254,6 @@ class SimServer:
         self.grippers: list[SimGripper] = []
         self.scheduler: Scheduler | None = None
         self._started = False
-        self._own_controllers: list[Any] = []
 
     # convenience for the common single-gripper case
     def __getitem__(self, i: int) -> SimGripper:
@@ -341,14 +361,15 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                option="--modbus-port", max_connections=opts.limits.modbus_connections,
-                idle_timeout=opts.limits.idle_timeout,
+                "pywsg.fieldbus.modbus.server", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                option="--modbus-port", controller=sg.fieldbus_controller(),
+                max_connections=opts.limits.modbus_connections, idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
-        sg.controller = getattr(sg.modbus, "controller", None)
         if opts.profibus:
             await self._start_profibus(sg, i)
+        if opts.profinet is not None:
+            sg.profinet = await self._start_profinet(sg, i)
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
@@ -365,6 +386,27 @@ class SimServer:
             )
             sg.web_port = _bound_port(sg.web) or web_port
 
+    async def _start_profinet(self, sg: SimGripper, i: int) -> Any:
+        opts = self.options
+        if opts.count > 1:
+            raise SimError("--profinet serves one gripper on one interface: use --count 1")
+        try:
+            from ..fieldbus.profinet import ProfinetError, serve_profinet
+            from ..fieldbus.profinet.station import parse_ip_suite
+        except ImportError as exc:
+            raise SimError(f"PROFINET is not available: {exc}") from exc
+        try:
+            suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
+        except ValueError as exc:
+            raise SimError(f"--profinet-ip: {exc}") from None
+        controller = sg.fieldbus_controller()
+        store = None if opts.settings is None else Path(opts.settings).with_name(
+            Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
+        try:
+            return await serve_profinet(sg.gripper, str(opts.profinet), controller, station_name=opts.profinet_name,
+                                        ip=suite, store_path=store)
+        except ProfinetError as exc:
+            raise SimError(str(exc)) from None
     async def _start_profibus(self, sg: SimGripper, i: int) -> None:
         from ..fieldbus.profibus.station import AddressStore
 
@@ -375,23 +417,16 @@ class SimServer:
             address = store.load() + i
         line = opts.profibus or "pty"
         path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
-        if sg.controller is None:
-            from ..fieldbus.controller import FieldbusController
-
-            sg.controller = FieldbusController(sg.gripper)  # type: ignore[arg-type]
-            self._own_controllers.append(sg.controller)
         from ..fieldbus.profibus.line import ProfibusAdapter
 
         try:
-            sg.profibus = await ProfibusAdapter(sg.controller, path, address, opts.profibus_baudrate,
+            sg.profibus = await ProfibusAdapter(sg.fieldbus_controller(), path, address, opts.profibus_baudrate,
                                                 on_address_change=store.save if i == 0 else None).start()
         except ValueError as exc:
             raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
         except OSError as exc:
             raise SimError(f"gripper {i}: cannot open PROFIBUS line {path}: {exc}") from exc
-        attach = getattr(sg.controller, "attach_bus", None)
-        if attach is not None:
-            attach(sg.profibus)
+        sg.controller.attach_bus(sg.profibus)
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
         """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
@@ -413,15 +448,15 @@ class SimServer:
         self._started = False
         for sg in self.grippers:
             sg.runner.stop()
-            for part in (sg.web, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
                 if part is None:
                     continue
                 with contextlib.suppress(Exception):
                     await part.close()
-        for controller in self._own_controllers:
-            with contextlib.suppress(Exception):
-                controller.close()
-        self._own_controllers.clear()
+            if sg.controller is not None:   # after its buses: none feeds it any more
+                with contextlib.suppress(Exception):
+                    sg.controller.close()
+                sg.controller = None
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)

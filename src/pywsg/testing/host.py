@@ -469,7 +469,7 @@ class SimThread:
         """The Modbus/TCP fieldbus port on 127.0.0.1, started on first use."""
         sg = self._sg
         if sg.modbus is None:
-            from ..fieldbus.modbus import serve_modbus
+            from ..fieldbus.modbus.server import serve_modbus
 
             async def _open() -> None:
                 sg.modbus = await serve_modbus(sg.gripper, sg.host, 0)

@@ -31,6 +31,7 @@ import asyncio
 import collections
 import contextlib
 import socket
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -44,6 +45,7 @@ from ..capture.commlog import CommLog, TxRx
 from ..client.url import parse_url
 from ..protocol import ChecksumMismatch, Frame, FrameParser, GarbageSkipped
 from ..protocol.parser import parse_datagram
+from ..server.netfault import NetFaults, Shaper
 
 __all__ = ["PcapWriter", "Proxy", "ProxyStats"]
 
@@ -308,6 +310,9 @@ class _Pipe(asyncio.Protocol):
         self.gripper_eofd = False
         self._client_holds: set[str] = {"connecting"}
         self._upstream_holds: set[str] = set()
+        self.shaper = Shaper(proxy.net, self._to_client)
+        """Network faults on the gripper's bytes toward the client (after the tap: the capture has them as sent)."""
+        self._net_timer: asyncio.TimerHandle | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -319,6 +324,8 @@ class _Pipe(asyncio.Protocol):
         transport.set_write_buffer_limits(high=HIGH_WATER)
         self.proxy.stats.connections += 1
         self.proxy._pipes.add(self)
+        if self.proxy.net.active:
+            self.net_rules()
         transport.pause_reading()  # until the gripper side is up
         task = asyncio.get_running_loop().create_task(self._connect())
         self.proxy._tasks.add(task)
@@ -370,14 +377,18 @@ class _Pipe(asyncio.Protocol):
     # -- data
     def data_received(self, data: bytes) -> None:
         assert self.upstream is not None
-        self.upstream.write(data)  # forward first: the tap adds no waiting
+        net = self.proxy.net
+        if not net.active:
+            self.upstream.write(data)  # forward first: the tap adds no waiting
+        elif not net.swallow(data):  # a silent gripper never gets the request
+            self.upstream.write(net.garble_bytes(data))
         if self.proxy.pcap is not None:
             self.proxy.pcap.tcp(self.peer, self.proxy.server_addr, data, time.time())
         self.tx.feed(data)
 
     def from_gripper(self, data: bytes) -> None:
         if self.client is not None and not self.client_gone:
-            self.client.write(data)
+            self.shaper.send(data)
         if self.proxy.pcap is not None:
             self.proxy.pcap.tcp(self.proxy.server_addr, self.peer, data, time.time())
         self.rx.feed(data)
@@ -414,6 +425,40 @@ class _Pipe(asyncio.Protocol):
         self.upstream.resume_reading()
         asyncio.get_running_loop().call_later(CLOSE_GRACE_S, self.close)
 
+    def _to_client(self, data: bytes) -> None:
+        if self.client is not None and not self.client_gone and not self.client.is_closing():
+            self.client.write(data)
+
+    def net_rules(self) -> None:
+        """Network faults reset / silent-with-timeout for this connection (new, or a fault just switched on)."""
+        s = self.proxy.net.s
+        if s.reset is not None:
+            self._close_later(s.reset, reset=True)
+        elif s.silent and s.close_after:
+            self._close_later(s.close_after, reset=False)
+
+    def _close_later(self, delay: float, reset: bool) -> None:
+        if self._net_timer is not None:
+            self._net_timer.cancel()
+        fn = self.reset if reset else self.close
+        if delay > 0:
+            self._net_timer = asyncio.get_running_loop().call_later(delay, fn)
+        else:
+            self._net_timer = None
+            fn()
+
+    def reset(self) -> None:
+        """Reset the client's connection (RST) as a gripper's network stack would; the gripper side closes."""
+        c = self.client
+        if c is not None and not c.is_closing():
+            sock = c.get_extra_info("socket")
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            self.proxy.net.counts["reset"] += 1
+            c.abort()
+        self.close()
+
     def upstream_lost(self) -> None:
         self.gripper_eofd = True
         self.close()
@@ -423,6 +468,9 @@ class _Pipe(asyncio.Protocol):
             return
         self.closed = True
         self.proxy._pipes.discard(self)
+        self.shaper.close()
+        if self._net_timer is not None:
+            self._net_timer.cancel()
         for t in (self.client, self.upstream):
             if t is not None:
                 t.close()
@@ -447,7 +495,7 @@ class _UdpUpstream(asyncio.DatagramProtocol):
         client = self.client or (lp.route(data) if lp is not None else None)
         listener = self.proxy._udp_listener
         if listener is not None and client is not None:
-            listener.sendto(data, client)
+            self.proxy.udp_shaper(client).send(data)
         if self.proxy.pcap is not None and client is not None:
             self.proxy.pcap.udp(self.proxy.server_addr, client, data, time.time())
         self.rx.feed(data, datagram=True)
@@ -480,6 +528,11 @@ class _UdpListener(asyncio.DatagramProtocol):
         if self.proxy.pcap is not None:
             self.proxy.pcap.udp(client, self.proxy.server_addr, data, time.time())
         self.tx.feed(data, datagram=True)
+        net = self.proxy.net
+        if net.active:
+            if net.swallow(data) or net.lose():
+                return  # a silent gripper, or the datagram lost on the way (after the tap)
+            data = net.garble_bytes(data)
         if self.proxy.reply_port:
             if len(data) > 3:
                 self.waiting.append((client, data[3]))
@@ -560,7 +613,7 @@ class Proxy:
 
     def __init__(self, target: str, listen_port: int = 0, listen_host: str = "127.0.0.1",
                  log: CommLog | None = None, pcap: str | Path | None = None, log_rate: int = 1000,
-                 udp_idle: float = 60.0) -> None:
+                 udp_idle: float = 60.0, net: NetFaults | None = None) -> None:
         ep = parse_url(target)
         if ep.scheme not in ("tcp", "udp"):
             raise ValueError(f"proxy target must be tcp:// or udp://, not {ep.scheme}://")
@@ -581,6 +634,35 @@ class Proxy:
         self._udp_proto: _UdpListener | None = None
         self._ticker: asyncio.Task[None] | None = None
         self.port_bound = 0
+        self.net = net or NetFaults()
+        """Network faults between the gripper and the clients (:mod:`pywsg.server.netfault`): switch them with
+        ``proxy.net.set(kind, params)`` on the proxy's loop, or over ``wsg proxy --control``."""
+        self._udp_shapers: collections.OrderedDict[tuple[str, int], Shaper] = collections.OrderedDict()
+        self.net.listeners.append(self._on_net)
+
+    def _on_net(self, what: str) -> None:
+        for pipe in list(self._pipes):
+            if what == "interrupt":
+                pipe.close()
+            else:
+                pipe.net_rules()
+
+    def udp_shaper(self, client: tuple[str, int]) -> Shaper:
+        """The shaper of the datagrams toward ``client`` (bounded like the upstream sockets)."""
+        sh = self._udp_shapers.get(client)
+        if sh is None:
+            listener = self._udp_listener
+
+            def send(data: bytes, client: tuple[str, int] = client) -> None:
+                if listener is not None and not listener.is_closing():
+                    listener.sendto(data, client)
+
+            sh = self._udp_shapers[client] = Shaper(self.net, send, ordered=False)
+            while len(self._udp_shapers) > UDP_UPSTREAMS:
+                self._udp_shapers.popitem(last=False)[1].close()
+        else:
+            self._udp_shapers.move_to_end(client)
+        return sh
 
     async def start(self) -> Proxy:
         loop = asyncio.get_running_loop()
@@ -611,6 +693,10 @@ class Proxy:
         return f"{self.transport}://{self.listen_host}:{self.port_bound}"
 
     async def close(self) -> None:
+        with contextlib.suppress(ValueError):
+            self.net.listeners.remove(self._on_net)
+        for sh in self._udp_shapers.values():
+            sh.close()
         if self._ticker is not None:
             self._ticker.cancel()
         for pipe in list(self._pipes):

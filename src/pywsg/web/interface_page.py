@@ -179,13 +179,38 @@ def store_path(settings_path: Path | None) -> Path | None:
     return None if settings_path is None else settings_path.with_name(settings_path.stem + ".interface.json")
 
 
+#: Beside the station address while ``wsg sim --profibus`` runs a DP slave for this gripper.
+PROFIBUS_APPLIED = ("Applied at once to the running PROFIBUS DP slave and stored; a master exchanging data "
+                    "with the old address loses the gripper (fail-safe). Shown as the Station Address on the "
+                    "Fieldbus Monitor.")
+
+
+def profibus_bus(fieldbus: Any) -> Any:
+    """The running PROFIBUS DP slave of this gripper (``wsg sim --profibus``), or None."""
+    controller = getattr(fieldbus, "controller", fieldbus)
+    for bus in getattr(controller, "buses", ()) or ():
+        if getattr(bus, "name", "") == "PROFIBUS DP" and hasattr(bus, "set_address"):
+            return bus
+    return None
+
+
 def router(ctx: WebContext) -> APIRouter:
     """``GET`` and ``POST /api/interface`` (the panel of ``templates/interface_panels.html``)."""
     r = APIRouter()
     store = InterfaceStore(store_path(ctx.settings_path))
 
+    def sync_profibus() -> Any:
+        """The live slave's address wins over the stored one (a master may have set it: Set_Slave_Address)."""
+        bus = profibus_bus(ctx.fieldbus)
+        if bus is not None and store.config.profibus_address != bus.address:
+            store.config = dataclasses.replace(store.config, profibus_address=bus.address)
+        return bus
+
     def view() -> dict[str, Any]:
-        return {"values": dataclasses.asdict(store.config), "interfaces": INTERFACES, "notes": NOT_APPLIED,
+        notes = dict(NOT_APPLIED)
+        if sync_profibus() is not None:
+            notes["profibus_address"] = PROFIBUS_APPLIED
+        return {"values": dataclasses.asdict(store.config), "interfaces": INTERFACES, "notes": notes,
                 "max_station_address": MAX_STATION,
                 "stored_in": str(store.path) if store.path else None, "problem": store.problem,
                 "serving": ctx.sim_info}
@@ -204,12 +229,15 @@ def router(ctx: WebContext) -> APIRouter:
             return error(422, "invalid input: body is not JSON", {"_": "body is not JSON"})
         if not isinstance(raw, dict) or not raw:
             return error(422, "invalid input: expected a JSON object {name: value}", {"_": "expected a JSON object"})
+        bus = sync_profibus()
         try:
             errors = store.update(raw)
         except OSError as exc:
             return error(500, f"not saved to {store.path}: {exc}")
         if errors:
             return error(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
+        if bus is not None and "profibus_address" in raw:
+            bus.set_address(store.config.profibus_address)
         body = view()
         body["changed"] = sorted(raw)
         return JSONResponse(body)

@@ -150,3 +150,67 @@ def _slave_diag(master: object) -> object:
             if ok and pyprofibus.dp.DpTelegram_SlaveDiag_Con.checkType(tel):
                 return tel
     raise AssertionError("no Slave_Diag response")
+
+
+def test_set_slave_address_persists_in_the_interface_settings(pb_factory: object, tmp_path: object) -> None:
+    """Set_Slave_Address (SAP 55) in Wait_Prm: the slave answers at the new address, and the address is
+    stored as ``profibus_address`` beside the settings file (002 §2.1.2: the station address can be
+    changed), where the next start reads it."""
+    import json
+    import select
+    from pathlib import Path
+
+    settings = Path(str(tmp_path)) / "s.json"
+    sim = pb_factory(tcp_port=None, udp_port=None, profibus="pty", settings=settings)  # type: ignore[operator]
+    ad = adapter(sim)
+    fd = os.open(ad.path, os.O_RDWR | os.O_NOCTTY)
+    try:
+        import tty
+
+        tty.setraw(fd)
+        os.write(fd, fdl.encode(7, MASTER, 0x4D, bytes((33, 0x55, 0x55, 0)), dsap=55, ssap=62))
+        assert select.select([fd], [], [], 5)[0], "no answer to Set_Slave_Address"
+        assert os.read(fd, 64) == fdl.SHORT_ACK
+        os.write(fd, fdl.encode(33, MASTER, 0x49))          # FDL status at the new address
+        assert select.select([fd], [], [], 5)[0], "no answer at address 33"
+        assert os.read(fd, 64) == fdl.encode(MASTER, 33, fdl.RES_OK)
+    finally:
+        os.close(fd)
+    stored = json.loads((settings.parent / "s.interface.json").read_text())
+    assert stored["profibus_address"] == 33
+    assert ad.bus_state()["Station Address"] == "33"
+
+
+def test_a_rising_fast_stop_reaches_the_master_as_a_diagnosis(pb_sim: SimThread) -> None:
+    """002 §3.3: SF_FAST_STOP rises → the slave answers Data_Exchange high priority (DH); pyprofibus
+    fetches Slave_Diag (with Ext_Diag and SYSSTATE) and goes back to Data_Exch on its own."""
+    ad = adapter(pb_sim)
+    with dp_master(ad.path) as (master, desc):
+        start(master, desc)
+        run_until(master, desc, lambda d: d is not None, "Data_Exch")
+        fast_stop = OutputImage(cmdflags=CmdFlag.FASTSTOP).pack()
+
+        def fast_stop_seen(d: bytes | None) -> bool:
+            return d is not None and bool(InputImage.unpack(d).sysstate & SystemFlag.SF_FAST_STOP)
+        run_until(master, desc, fast_stop_seen, "SF_FAST_STOP in the inputs", out=fast_stop)
+        run_until(master, desc, lambda d: ad.slave.stats.high_priority > 0 and not ad.slave.diagnosis_pending,
+                  "the master to read the diagnosis", out=fast_stop)
+        run_until(master, desc, lambda d: desc.isConnected() and d is not None, "Data_Exch again", out=fast_stop)
+        diag = ad.slave.diagnosis(MASTER)
+    assert diag[0] & 0x08 and int.from_bytes(diag[7:11], "little") & SystemFlag.SF_FAST_STOP   # Ext_Diag, SYSSTATE
+
+
+def test_global_control_clear_from_pyprofibus_is_fail_safe(pb_sim: SimThread) -> None:
+    """Global_Control Clear_Data (broadcast, SAP 58) from the locking master: the controller's fail-safe
+    (FAST STOP, docs/fidelity.md) shows in the inputs of the next Data_Exchange."""
+    ad = adapter(pb_sim)
+    with dp_master(ad.path) as (master, desc):
+        start(master, desc)
+        run_until(master, desc, lambda d: d is not None, "Data_Exch")
+        gc = pyprofibus.dp.DpTelegram_GlobalControl(da=fdl.BROADCAST, sa=MASTER)
+        gc.controlCommand = gc.CCMD_CLEAR
+        master.dpTrans.send(pyprofibus.fdl.FdlFCB(enable=False), gc)
+
+        def fast_stop(d: bytes | None) -> bool:
+            return d is not None and bool(InputImage.unpack(d).sysstate & SystemFlag.SF_FAST_STOP)
+        run_until(master, desc, fast_stop, "FAST STOP after Clear_Data")

@@ -252,3 +252,12 @@ def test_unknown_sap_answers_rs_and_telegrams_for_others_get_nothing(slave: DpSl
     bus = Bus(slave)
     assert bus.srd(b"", 40) == fdl.encode(M, 7, fdl.RES_RS)
     assert bus.raw(0x49, da=8) is None
+
+
+def test_set_address_from_the_settings_page_drops_the_master_fail_safe(slave: DpSlave, port: Recorder) -> None:
+    Bus(slave).connect()
+    slave.set_address(20)
+    assert slave.state is DpState.WAIT_PRM and slave.master is None and slave.address == 20
+    assert port.fail_safes == [("PROFIBUS DP", "station address changed to 20")]
+    with pytest.raises(ValueError):
+        slave.set_address(126)

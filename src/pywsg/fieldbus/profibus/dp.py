@@ -97,15 +97,13 @@ class ImagePort(Protocol):
 
     def input_bytes(self) -> bytes: ...
 
+    def fail_safe(self, bus: str, reason: str) -> None: ...
+
 
 def fail_safe(port: ImagePort, reason: str) -> None:
-    """``port.fail_safe(BUS_NAME, reason)``: what the gripper does when its master is lost
-    (docs/fidelity.md). A controller without it gets zero outputs (jog levels drop: the jog stops)."""
-    method = getattr(port, "fail_safe", None)
-    if method is not None:
-        method(BUS_NAME, reason)
-    else:
-        port.write_outputs(OutputImage())
+    """What the gripper does when its master is lost: the controller's one rule for every bus
+    (FAST STOP, outputs to zero; docs/fidelity.md "Fieldbus master lost")."""
+    port.fail_safe(BUS_NAME, reason)
 
 
 @dataclass
@@ -155,6 +153,11 @@ class DpSlave:
         self._pending_address: int | None = None
         self.last_reason = ""                   # why the slave last left Data_Exch / refused
 
+    @property
+    def diagnosis_pending(self) -> bool:
+        """A new diagnosis the locking master has not read yet (Data_Exchange answers DH)."""
+        return self._diag_pending
+
     # --- the entry point ---------------------------------------------------------------------
     def handle(self, tel: fdl.Telegram, now: float) -> bytes | None:
         """The response to ``tel`` (bytes to put on the line), or None: no answer."""
@@ -198,6 +201,20 @@ class DpSlave:
             self._last.clear()
             if self.on_address_change is not None:
                 self.on_address_change(new)
+
+    def set_address(self, address: int) -> None:
+        """Change the station address from outside the bus (Settings → Command Interface). A master
+        in Data_Exch loses the slave: fail-safe, Wait_Prm, unlocked."""
+        if not 0 <= address <= MAX_STATION_ADDRESS:
+            raise ValueError(f"PROFIBUS station address is 0..{MAX_STATION_ADDRESS}, got {address}")
+        if address == self.address:
+            return
+        if self.state is not DpState.WAIT_PRM:
+            self._leave(f"station address changed to {address}", safe=self.state is DpState.DATA_EXCH)
+        self.master = None
+        self.address = address
+        self._fcb.clear()
+        self._last.clear()
 
     def check_watchdog(self, now: float) -> bool:
         """Expire the watchdog if its time has come; True when it did."""

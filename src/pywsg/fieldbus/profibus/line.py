@@ -106,6 +106,11 @@ class ProfibusAdapter:
         """What a master opens: ``profibus://PATH?address=7&baudrate=19200``."""
         return f"profibus://{self.path}?address={self.slave.address}&baudrate={self.baudrate}"
 
+    def set_address(self, address: int) -> None:
+        """Answer at ``address`` from now on (the web page's station address; not persisted here)."""
+        self.slave.set_address(address)
+        log.info("PROFIBUS DP: station address now %d", address)
+
     def bus_state(self) -> dict[str, str]:
         """The Fieldbus Monitor's Bus State rows (003 §6)."""
         state = "Offline" if self._closed else _STATE_TEXT[self.slave.state]
@@ -164,6 +169,9 @@ class ProfibusAdapter:
         if self._closed:
             return
         self._closed = True
+        detach = getattr(self.controller, "detach_bus", None)
+        if detach is not None:
+            detach(self)
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None

@@ -31,7 +31,6 @@ import asyncio
 import logging
 import struct
 import time
-import weakref
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -42,13 +41,13 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from ..server.conncap import cap_modbus_server
-from .controller import FieldbusController
-from .image import COILS, DISCRETE_INPUTS, INPUT_REGISTERS, OUTPUT_REGISTERS, InputImage, OutputImage, int_of
+from ...server.conncap import cap_modbus_server
+from ..controller import FieldbusController
+from ..image import COILS, DISCRETE_INPUTS, INPUT_REGISTERS, OUTPUT_REGISTERS, InputImage, OutputImage, int_of
+from . import STANDARD_PORT
 
 log = logging.getLogger(__name__)
 
-STANDARD_PORT = 502
 
 _FC_READ_COILS, _FC_READ_DI, _FC_READ_HR, _FC_READ_IR = 1, 2, 3, 4
 _FC_WRITE_COIL, _FC_WRITE_REG, _FC_WRITE_COILS, _FC_WRITE_REGS = 5, 6, 15, 16
@@ -297,13 +296,16 @@ class _Server(ModbusTcpServer):
 
 @dataclass
 class ModbusHandle:
-    """A running Modbus/TCP fieldbus server. ``port`` is the bound port (useful with port 0)."""
+    """A running Modbus/TCP fieldbus server: the controller's :class:`~pywsg.fieldbus.bus.BusAdapter`
+    for Modbus/TCP. ``port`` is the bound port (useful with port 0)."""
 
     host: str
     port: int
     controller: FieldbusController
     server: Any = field(repr=False)
     adapter: FieldbusModbusAdapter = field(repr=False)
+    owns_controller: bool = field(default=False, repr=False)   # serve_modbus made it: close() closes it
+    name: str = "Modbus/TCP"
 
     @property
     def output_image(self) -> OutputImage:
@@ -324,11 +326,29 @@ class ModbusHandle:
         """``time.time()`` of the last write a master made, None before the first."""
         return self.adapter.last_write
 
+    def bus_state(self) -> dict[str, str]:
+        """The Fieldbus Monitor's Bus State rows (003 §6) for Modbus/TCP.
+
+        "Interface state" is Online while a master is connected (with the age of its last write),
+        Waiting with none (docs/fidelity.md "Interface state"). Modbus/TCP has no station address or
+        bitrate: the rows say what stands in their place.
+        """
+        masters = self.masters
+        last = self.last_write
+        ago = "no write yet" if last is None else f"last write {max(0.0, time.time() - last):.1f} s ago"
+        if masters:
+            state = f"Online: {masters} master{'' if masters == 1 else 's'} connected, {ago}"
+        else:
+            state = f"Waiting: no Modbus master connected ({ago})"
+        return {"Interface": f"Modbus/TCP (port {self.port})", "Unit id": "any (the WSG answers every unit id)",
+                "Interface state": state}
+
     async def close(self) -> None:
-        """Stop serving and close the controller's device session."""
-        _SERVING.pop(id(self.controller), None)
+        """Stop serving and detach from the controller (closed too if ``serve_modbus`` made it)."""
+        self.controller.detach_bus(self)
         await self.server.shutdown()
-        self.controller.close()
+        if self.owns_controller:
+            self.controller.close()
         await asyncio.sleep(0)
 
 
@@ -337,32 +357,26 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
                        idle_timeout: float | None = None) -> ModbusHandle:
     """Serve ``gripper``'s fieldbus interface over Modbus/TCP on ``host:port`` (port 0: any free port).
 
+    ``controller``: the gripper's :class:`FieldbusController` when other buses share it (the sim makes
+    one per gripper); without one, a controller of its own is made and closed with the server.
     Runs on the current event loop; the gripper must be polled by a runner (e.g.
     ``pywsg.server.DeviceRunner``) so motions finish. Raises OSError if the port cannot be bound.
     At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``); one
     sending nothing for ``idle_timeout`` s is closed (None: never).
     """
+    owns = controller is None
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
     cap_modbus_server(server, max_connections, idle_timeout)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
-        ctl.close()
+        if owns:
+            ctl.close()
         raise OSError(f"cannot listen for Modbus/TCP on {host}:{port}")
     sockets = getattr(server.transport, "sockets", None) or []
     bound = sockets[0].getsockname()[1] if sockets else port
     log.info("Modbus/TCP fieldbus on %s:%d", host, bound)
-    handle = ModbusHandle(host, bound, ctl, server, adapter)
-    _SERVING[id(ctl)] = handle
+    handle = ModbusHandle(host, bound, ctl, server, adapter, owns)
+    ctl.attach_bus(handle)
     return handle
-
-
-# controller id -> the server serving it, for views that hold only the controller (web interface)
-_SERVING: weakref.WeakValueDictionary[int, ModbusHandle] = weakref.WeakValueDictionary()
-
-
-def handle_of(controller: FieldbusController) -> ModbusHandle | None:
-    """The running Modbus/TCP server of ``controller``, if one serves it."""
-    handle = _SERVING.get(id(controller))
-    return handle if handle is not None and handle.controller is controller else None
