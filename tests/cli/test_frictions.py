@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import signal
 import socket
 import subprocess
 import time
@@ -117,3 +118,40 @@ def test_sim_verbose_lines_are_not_called_warnings() -> None:
     lines = [ln for ln in err.splitlines() if "GET_OPENING_WIDTH" in ln]
     assert lines, err
     assert all(re.search(r"\bINFO\b", ln) and not ln.startswith("warning:") for ln in lines), lines
+
+
+def _sim_with_settings(path: Path) -> tuple[subprocess.Popen[str], str]:
+    port = free_port()
+    proc = subprocess.Popen([str(WSG), "sim", "--no-uvloop", "--tcp-port", str(port), "--udp-port", "off", "--serial",
+                             "off", "--web-port", "off", "--settings", str(path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout is not None
+    banner = proc.stdout.readline()
+    assert "TCP" in banner, banner
+    return proc, f"tcp://127.0.0.1:{port}"
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def test_device_tag_survives_a_restart_with_settings(tmp_path: Path) -> None:
+    """51h's tag is kept in the --settings file: after a restart 52h still answers it."""
+    settings = tmp_path / "settings.json"
+    proc, url = _sim_with_settings(settings)
+    try:
+        assert run_wsg("tag", "set", "cell-7", url=url).code == 0
+    finally:
+        _stop(proc)
+    assert json.loads(settings.read_text())["tag"] == "cell-7"
+    proc, url = _sim_with_settings(settings)
+    try:
+        r = run_wsg("tag", "--json", url=url)
+        assert r.code == 0 and r.json() == {"tag": "cell-7"}, r
+    finally:
+        _stop(proc)

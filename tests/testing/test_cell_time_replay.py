@@ -52,6 +52,19 @@ def test_time_scale_homes_k_times_sooner_with_the_same_device_duration() -> None
     assert real < device_duration  # K = 25: 1/25 of it plus the machine's latency (generous under load)
 
 
+def test_time_scale_cools_the_motor_k_times_sooner() -> None:
+    """The thermal model (tau 300 s) on a 1000x clock: a minute of cooling in well under a second."""
+    with SimThread(time_scale=1000) as sim:
+        sim.world.heat(40.0)
+        hot = sim.world.state()
+        deadline = time.monotonic() + 10
+        while sim.world.state()["time"] - hot["time"] < 60 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        cooled = sim.world.state()
+    assert cooled["time"] - hot["time"] >= 60, "the scaled clock did not run"
+    assert cooled["temperature"] < hot["temperature"] - 5  # 40 °C above equilibrium: ~7.3 °C per minute
+
+
 def test_time_scale_and_clock_are_exclusive() -> None:
     with pytest.raises(ValueError, match="time_scale and clock"):
         SimThread(clock="manual", time_scale=10)
@@ -126,3 +139,16 @@ def test_a_replay_that_differs_fails_with_every_difference_named(wsg_sim: SimThr
     with pytest.raises(AssertionError, match=r"difference\(s\) from the recording") as err:
         wsg_sim.assert_replays(SAMPLE)  # recorded on a WSG 50 (110 mm stroke); this is a WSG 32
     assert "width: recorded 110 mm" in str(err.value)
+
+
+def test_wsg_replay_sim_is_the_ci_one_liner() -> None:
+    from .conftest import wsg
+
+    done = wsg("replay", str(SAMPLE), "--sim", "wsg50")
+    assert done.returncode == 0 and "all replies matched" in done.stdout, done.stdout + done.stderr
+    done = wsg("replay", str(SAMPLE), "--sim", "wsg32", "--json")
+    assert done.returncode == 1
+    report = json.loads(done.stdout)
+    assert not report["matched"] and any(d["what"] == "width" for d in report["differences"])
+    done = wsg("replay", str(SAMPLE))
+    assert done.returncode == 2 and "--to URL or --sim MODEL" in done.stderr

@@ -123,3 +123,24 @@ def test_control_api_refuses_browser_pages_and_foreign_hosts(tapped: tuple[SimTh
         assert " 403 " in ask(f"Host: 127.0.0.1:{server.port}\r\nOrigin: http://evil.example\r\n")
     finally:
         server.close()
+
+
+def test_proxy_drops_udp_datagrams_in_front_of_the_gripper() -> None:
+    loop = LoopThread("proxy-udp-test")
+    try:
+        with SimThread(clock="manual", tcp_port=None) as sim:
+            proxy = Proxy(sim.udp_url, net=NetFaults())
+            loop.run(proxy.start())
+            try:
+                with Gripper(proxy.address + "?reply_port=0", timeout=0.2) as g:
+                    assert g.loop(b"through") == b"through"
+                    _set(loop, proxy, "drop", p=1.0)
+                    with pytest.raises(TimeoutError):
+                        g.width()
+                    assert proxy.net.counts["dropped"] >= 1
+                    _set(loop, proxy, "drop", on=False)
+                    assert g.temperature() > 0  # another command: in step at once
+            finally:
+                loop.run(proxy.close())
+    finally:
+        loop.close()

@@ -67,3 +67,16 @@ def test_scenario_switches_network_faults_and_slips_the_part(tmp_path: Path) -> 
         texts = [text for _, text in sim.scenario_runners[0].log]
         assert any(t.startswith("gripper silent") for t in texts)
         assert any(t.startswith("part slipping out") for t in texts)
+
+
+def test_wsg_sim_net_starts_with_a_network_fault(sim_proc: type[SimProc]) -> None:
+    sim = sim_proc("--net", "latency:ms=150")
+    with Gripper(sim.url, timeout=3.0) as g:
+        t = time.monotonic()
+        g.loop(b"slow")
+        assert time.monotonic() - t >= 0.14
+    state = json.loads(wsg("world", "--sim", sim.web, "--json", "state").stdout)
+    assert state["net"] == {"latency": {"ms": 150.0, "jitter": 0.0}}
+    done = wsg("sim", "--net", "latency:rate=5", "--tcp-port", "0", "--udp-port", "off", "--serial", "off",
+               "--web-port", "off")
+    assert done.returncode == 2 and "rate: not a parameter of latency" in done.stderr

@@ -39,7 +39,7 @@ def shot(page: Any, name: str, doc: str | None = None) -> None:
     update_docs = doc is not None and bool(os.environ.get("PYWSG_UPDATE_DOC_IMAGES"))
     if update_docs:
         page.evaluate("window.scrollTo(0, 0)")  # the sticky Gripper box at the top, as a reader first sees it
-    page.screenshot(path=str(path), full_page=True)
+    page.screenshot(path=str(path), full_page=True, timeout=30000)  # the Help page is long: seconds on a busy machine
     if doc is not None and update_docs:
         # refresh the README's screenshots only on request: a test run leaves the tree clean
         DOC_IMAGES.mkdir(parents=True, exist_ok=True)
@@ -69,9 +69,9 @@ def test_every_page_opens_and_goes_live(sim: LiveSim, page: Any) -> None:
         assert page.inner_text("#ws-text") == "live"
         assert page.locator("#flag-list li").count() == 19
         shot(page, "page" + path.replace("/", "_"))
-    # menu: the Diagnosis drop-down leads to the Fieldbus Monitor
+    # menu: the Diagnostics drop-down (003 §6, figure 1) leads to the Fieldbus Monitor
     page.goto(sim.url + "/")
-    page.hover("text=Diagnosis")
+    page.hover("text=Diagnostics")
     page.click("a[href='/diagnosis/fieldbus']")
     assert page.inner_text("main h1") == "Fieldbus Monitor"
 

@@ -12,7 +12,9 @@ the SYN) is a request, one from it a reply; otherwise the decoder guesses per fr
 
 from __future__ import annotations
 
+import heapq
 import ipaddress
+import math
 import re
 import struct
 from collections.abc import Collection, Iterator
@@ -38,6 +40,8 @@ DEFAULT_PORTS = frozenset({1000, 1500, 1501})
 _PCAP_MAGICS = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
 _SEQ_MOD = 1 << 32
+MAX_HELD = 1024 * 1024
+"""Bytes of TCP segments held behind a gap before the gap is taken as lost (bytes missing from the capture)."""
 Transport = Literal["tcp", "udp"]
 
 
@@ -100,15 +104,31 @@ def jsonl_records(path: str | Path) -> Iterator[tuple[float, str, bytes]]:
             continue
         try:
             obj = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # RecursionError: nested ~1,000 deep
             raise ValueError(f"line {n}: not a JSON object (a JSON-lines log has one per line)") from None
         if not isinstance(obj, dict) or obj.get("direction") not in ("tx", "rx") or not obj.get("hex"):
             continue
+        if not isinstance(obj["hex"], str):
+            raise ValueError(f"line {n}: hex: must be a string of hex bytes")
         try:
-            raw = parse_hex(str(obj["hex"]))
+            raw = parse_hex(obj["hex"])
         except ValueError as exc:
             raise ValueError(f"line {n}: {exc}") from None
-        yield float(obj.get("time") or 0.0), obj["direction"], raw
+        yield _seconds(obj.get("time"), n), obj["direction"], raw
+
+
+def _seconds(value: Any, n: int) -> float:
+    """A log line's ``time``: a finite number of seconds (missing: 0)."""
+    if value is None:
+        return 0.0
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        try:
+            t = float(value)
+        except OverflowError:
+            t = math.inf
+        if math.isfinite(t):
+            return t
+    raise ValueError(f"line {n}: time: must be a number of seconds")
 
 
 def frames_from_jsonl(path: str | Path, direction: Direction | None = None) -> list[LoggedFrame]:
@@ -216,7 +236,10 @@ class _Stream:
     dst: str
     direction: Direction | None
     next_seq: int | None = None
-    held: dict[int, tuple[float, bytes]] = field(default_factory=dict)  # out-of-order segments by seq
+    # out-of-order segments: a heap of (position relative to next_seq when held + bytes fed so far, n, ts, seq, data)
+    held: list[tuple[int, int, float, int, bytes]] = field(default_factory=list)
+    fed: int = 0  # bytes fed to the parser so far (an unwrapped stream position)
+    held_bytes: int = 0
     parser: FrameParser = field(default_factory=lambda: FrameParser(verify_checksum=False))
     buf: bytearray = field(default_factory=bytearray)  # bytes fed to the parser, not yet attributed
     seen_frame: bool = False
@@ -235,6 +258,7 @@ class _Extractor:
         self.ports = ports
         self.streams: dict[tuple[Transport, str, str], _Stream] = {}
         self.servers: set[str] = set()  # endpoints that received a SYN
+        self._count = 0
 
     def stream(self, transport: Transport, src: str, sport: int, dst: str, dport: int) -> _Stream:
         key = (transport, src, dst)
@@ -248,6 +272,13 @@ class _Extractor:
             s = self.streams[key] = _Stream(src, dst, direction)
             if transport == "udp" and dport == 1501:
                 s.direction = "reply"
+            if s.direction is None and transport == "udp":
+                # ports say nothing: the side that spoke first is the client (a gripper only answers),
+                # so a 41h request byte-identical to an IDLE reply is still a request
+                back = self.streams.get((transport, dst, src))
+                s.direction = "reply" if back is not None else "request"
+                if back is not None and back.direction is None:
+                    back.direction = "request"
         return s
 
     def tcp(self, ts: float, ip: Any, tcp: Any) -> Iterator[CapturedFrame]:
@@ -259,50 +290,48 @@ class _Extractor:
         if syn:
             s.next_seq = (tcp.seq + 1) % _SEQ_MOD
             s.held.clear()
+            s.held_bytes = 0
         data = bytes(tcp.data)
         if not data:
             return
         if s.next_seq is None:  # capture started mid-connection
             s.next_seq = tcp.seq
-        s.held[tcp.seq] = (ts, data)
+        pos = s.fed + _signed_delta(tcp.seq, s.next_seq)
+        self._count += 1
+        heapq.heappush(s.held, (pos, self._count, ts, tcp.seq, data))
+        s.held_bytes += len(data)
         yield from self._drain(s, ts)
+        if s.held_bytes > MAX_HELD:  # a gap that has not filled in 1 MiB: the segment is lost
+            yield from self._skip_gap(s, "tcp")
 
     def _drain(self, s: _Stream, now: float) -> Iterator[CapturedFrame]:
-        """Feed every held segment that is now in order; frames are stamped ``now`` (their completion)."""
-        assert s.next_seq is not None
-        progressed = True
-        while progressed and s.held:
-            progressed = False
-            for seq in list(s.held):
-                _ts, data = s.held[seq]
-                delta = _signed_delta(seq, s.next_seq)
-                if delta > 0:
-                    continue  # a gap before it: wait
-                del s.held[seq]
-                if -delta >= len(data):
-                    continue  # pure retransmission
-                fresh = data[-delta:]
-                s.next_seq = (s.next_seq + len(fresh)) % _SEQ_MOD
-                yield from self._feed(s, now, fresh, "tcp")
-                progressed = True
+        """Feed every held segment that is now in order (each is looked at once: a heap by stream
+        position); frames are stamped ``now`` (their completion)."""
+        while s.held and s.held[0][0] <= s.fed:
+            pos, _n, _ts, _seq, data = heapq.heappop(s.held)
+            s.held_bytes -= len(data)
+            overlap = s.fed - pos
+            if overlap >= len(data):
+                continue  # pure retransmission
+            fresh = data[overlap:]
+            s.next_seq = ((s.next_seq or 0) + len(fresh)) % _SEQ_MOD
+            s.fed += len(fresh)
+            yield from self._feed(s, now, fresh, "tcp")
+
+    def _skip_gap(self, s: _Stream, transport: Transport) -> Iterator[CapturedFrame]:
+        """Give up on the missing bytes before the first held segment: report them, resync there."""
+        pos, _n, ts, seq, _data = s.held[0]
+        yield self._problem(s, ts, transport, f"{pos - s.fed} byte(s) missing from the capture")
+        s.parser.clear()
+        s.buf.clear()
+        s.fed, s.next_seq = pos, seq
+        yield from self._drain(s, ts)
 
     def finish(self) -> Iterator[CapturedFrame]:
         """End of capture: report gaps that never filled and partial frames."""
         for (transport, _src, _dst), s in self.streams.items():
-            if s.held and s.next_seq is not None:
-                # data after a gap (lost segment): parse it anyway after a resync
-                for seq in sorted(s.held, key=lambda q: _signed_delta(q, s.next_seq or 0)):
-                    ts, data = s.held.pop(seq)
-                    gap = _signed_delta(seq, s.next_seq)
-                    if gap > 0:
-                        yield self._problem(s, ts, transport, f"{gap} byte(s) missing from the capture")
-                        s.parser.clear()
-                        s.buf.clear()
-                        s.next_seq = seq
-                    delta = _signed_delta(seq, s.next_seq)
-                    fresh = data[-delta:] if delta < 0 else data
-                    s.next_seq = (s.next_seq + len(fresh)) % _SEQ_MOD
-                    yield from self._feed(s, ts, fresh, transport)
+            while s.held and s.next_seq is not None:  # data after a gap (lost segment): parse it after a resync
+                yield from self._skip_gap(s, transport)
             rest = s.parser.pending()
             if rest and s.seen_frame:
                 for d in decode_bytes(rest, s.direction):
@@ -370,8 +399,26 @@ def frames_from_capture(path: str | Path, ports: Collection[int] | None = None) 
     ex = _Extractor(frozenset(ports) if ports is not None else DEFAULT_PORTS)
     out: list[CapturedFrame] = []
     with open(path, "rb") as f:
-        linktype, packets = _packets(f)
-        for ts, buf in packets:
+        try:
+            linktype, packets = _packets(f)
+        except (dpkt.UnpackError, struct.error, EOFError, ValueError) as exc:
+            raise ValueError(f"not a readable capture: {exc or type(exc).__name__}") from None
+        n = 0
+        ts = 0.0
+        while True:
+            try:
+                ts, buf = next(packets)
+            except StopIteration:
+                break
+            except (dpkt.UnpackError, struct.error, EOFError, ValueError, OverflowError, MemoryError) as exc:
+                # a truncated file or a block with an impossible length: keep what was read, say where it ended
+                what = str(exc) or type(exc).__name__
+                msg = f"capture damaged after packet {n} ({what[:80]}): the rest is not read"
+                out.extend(ex.finish())
+                out.append(CapturedFrame(float(ts), "tcp", "-", "-",
+                                         DecodedFrame(b"", None, "-", "unknown", None, error=msg)))
+                return out
+            n += 1
             try:
                 ip = _ip_from_link(linktype, buf)
             except (dpkt.UnpackError, IndexError, struct.error):

@@ -71,7 +71,7 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
 
     net = NetFaults()
     for spec in net_faults:
-        _start_fault(net, spec)
+        start_fault(net, spec)
     control_addr = _address(control, "--control") if control is not None else None
 
     host, _, port_text = listen.rpartition(":")
@@ -159,7 +159,7 @@ def _address(text: str, hint: str) -> tuple[str, int]:
     return host or "127.0.0.1", port
 
 
-def _start_fault(net: Any, spec: str) -> None:
+def start_fault(net: Any, spec: str) -> None:
     """``--net latency:ms=200,jitter=50`` switched on in ``net`` (a NetFaults); bad ones are usage errors."""
     from ..server.netfault import NetFaultError
 

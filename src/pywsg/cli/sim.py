@@ -134,6 +134,9 @@ def _json_line(line: str) -> str:
               show_default=True, metavar="K",
               help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
               "periods and scenarios (the network and clients' timeouts are not scaled).")
+@click.option("--net", "net_faults", multiple=True, metavar="KIND[:K=V,...]",
+              help="Start with a network fault on every gripper's interfaces (repeatable), e.g. "
+              "latency:ms=200,jitter=50 or drop:p=0.3; wsg world net switches them later (wsg world net --help).")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
 @click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
@@ -176,6 +179,7 @@ def sim(
     settings_file: Path | None,
     count: int,
     time_scale: float,
+    net_faults: tuple[str, ...],
     use_uvloop: bool | None,
     part_width: float | None,
     block_width: float | None,
@@ -265,6 +269,12 @@ def sim(
     from ..testing.scenario import Scenario, ScenarioError
     from ..testing.world import WorldError
 
+    if net_faults:
+        from ..server.netfault import NetFaults
+        from .proxy import start_fault
+
+        for spec in net_faults:
+            start_fault(NetFaults(), spec)  # a bad --net is a usage error before anything starts
     try:
         scenario = Scenario.load(scenario_file) if scenario_file else None
     except ScenarioError as exc:
@@ -280,6 +290,13 @@ def sim(
                 click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
 
         setup_world(server, part=part_width, block=block_width, scenario=scenario, on_action=said)
+        if net_faults:
+            from ..server.netfault import net_faults as faults_of
+            from .proxy import start_fault
+
+            for sg in server.grippers:
+                for spec in net_faults:
+                    start_fault(faults_of(sg.gripper), spec)
 
     try:
         _run(run_sim(options, echo=echo, on_start=on_start), use_uvloop)

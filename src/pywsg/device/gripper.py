@@ -125,7 +125,7 @@ class VirtualGripper(DeviceCore):
                 self._transitions.append((before, GripperState.IDLE))
         self._event = None
         self._bits = 0
-        self.tag = None
+        self.tag = settings.tag  # kept in the settings (file): a restart keeps it
         self.fingers = [Finger.of(settings.finger1), Finger.of(settings.finger2)]
         self.health = Health(self.thermal, self.log)
         self.script_if = 0
@@ -177,7 +177,7 @@ class VirtualGripper(DeviceCore):
         self.changed()
 
     def restart(self) -> None:
-        """Power-cycle: session values (acceleration, force limit, soft limits, tag) are lost."""
+        """Power-cycle: session values (acceleration, force limit, soft limits) are lost; the tag is kept."""
         now = self.clock()
         self.abort_motion(S.E_CMD_ABORTED, now)
         self._power_up(self.settings)

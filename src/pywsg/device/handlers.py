@@ -323,6 +323,7 @@ def set_tag(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     if not payload or any(b < 0x20 or b > 0x7E for b in payload):
         return Frame.reply(0x51, S.E_INVALID_PARAMETER)
     g.tag = payload.decode("ascii")
+    g.settings = g.settings.updated(tag=g.tag)  # saved with the settings: the tag survives a restart
     return Frame.reply(0x51, S.E_SUCCESS)
 
 

@@ -12,6 +12,7 @@ their own units: mm, mm/s, N, °C). Timing is not compared.
 
 from __future__ import annotations
 
+import collections
 import math
 import socket
 import time
@@ -74,6 +75,8 @@ def _records(path: Path) -> Iterable[tuple[str, bytes]]:
     if is_capture(path):
         for c in frames_from_capture(path):
             d = c.decoded
+            if d.error and d.error.startswith("capture damaged"):
+                raise ValueError(f"{path}: {d.error}")
             if d.command_id is None or d.error:
                 continue
             yield ("tx" if d.direction == "request" else "rx"), d.raw
@@ -88,17 +91,16 @@ def _records(path: Path) -> Iterable[tuple[str, bytes]]:
 def load_steps(path: str | Path) -> list[Step]:
     """The recorded requests with their replies, from a capture or a JSON-lines log."""
     steps: list[Step] = []
+    latest: dict[int, Step] = {}  # the latest request with each ID owns its replies
     for direction, raw in _records(Path(path)):
         d = decode_bytes(raw, "request" if direction == "tx" else "reply")[0]
         if d.command_id is None:
             continue
         if direction == "tx":
-            steps.append(Step(raw, d.command_id, d.command))
-        else:
-            for st in reversed(steps):  # the latest request with this ID owns the reply
-                if st.command_id == d.command_id:
-                    st.replies.append(raw)
-                    break
+            st = latest[d.command_id] = Step(raw, d.command_id, d.command)
+            steps.append(st)
+        elif (owner := latest.get(d.command_id)) is not None:
+            owner.replies.append(raw)
     return steps
 
 
@@ -118,7 +120,7 @@ class _Link:
             self.sock = socket.create_connection((ep.host, ep.port), timeout=timeout)
             self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.parser = FrameParser()
-        self.frames: list[Frame] = []
+        self.frames: collections.deque[Frame] = collections.deque()
 
     def send(self, data: bytes) -> None:
         if self.udp:
@@ -132,7 +134,7 @@ class _Link:
         deadline = time.monotonic() + self.timeout
         while len(got) < n:
             while self.frames and len(got) < n:
-                f = self.frames.pop(0)
+                f = self.frames.popleft()
                 if f.command_id == command_id:
                     got.append(f)
             if len(got) >= n:

@@ -14,6 +14,7 @@ from typing import Any, Literal
 from fastapi import APIRouter
 from pydantic import Field
 
+from ..testing.world import world_state
 from .api import StrictBody
 from .context import InputError, WebContext, motion_limits
 from .views import field_of_error
@@ -57,6 +58,11 @@ def router(ctx: WebContext) -> APIRouter:
         except ValueError as exc:  # the device names the field: "width: must be ..."
             field, reason = field_of_error(str(exc), ["width", "stiffness", "delta_c", "finger"])
             raise InputError({field: reason}) from None
+
+    @r.get("/world")
+    async def world() -> dict[str, Any]:
+        """The part, block, faults and temperature now (what the Simulation page shows)."""
+        return world_state(ctx.gripper)
 
     def done(action: str) -> dict[str, Any]:
         log.info("web: simulation: %s", action)

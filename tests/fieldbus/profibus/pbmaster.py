@@ -1,7 +1,7 @@
 """pyprofibus as the DP master on the other end of the slave's pty, configured from pywsg's own GSD.
 
 pyprofibus (GPL-2.0+) is a test dependency only. Its serial PHY opens the pty 8E1 through pyserial
-(the pty accepts the parity setting and enforces nothing). Its DPM1 state machine is polled: each
+(a pty's driver clears the parity bit: no parity there). Its DPM1 state machine is polled: each
 ``run()`` sends at most one telegram and reads what arrived; :func:`run_until` polls it with a short
 sleep between calls so the master does not spin a whole core.
 """

@@ -36,8 +36,8 @@ def test_scl_cycle_holds_the_part_over_profibus(pb_sim: SimThread) -> None:
     _fast_fingers_and_a_part(pb_sim)
     ad = adapter(pb_sim)
     lines: list[str] = []
-    result = asyncio.run(run_demo(f"profibus://{ad.path}?address=7&baudrate=19200", cycles=2, timeout=40,
-                                  echo=lines.append))
+    url = f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000"
+    result = asyncio.run(run_demo(url, cycles=2, timeout=40, echo=lines.append))
     assert result.completed, "\n".join(lines)
     assert (result.cycles, result.holds, result.no_part, result.errors) == (2, 2, 0, 0)
     assert pb_sim.call(lambda: pb_sim.gripper.snapshot().statistics[0]) == 2   # the gripper counted 2 grips
@@ -48,7 +48,19 @@ def test_wsg_plc_demo_url_profibus(pb_sim: SimThread) -> None:
     """``wsg plc-demo --url profibus://PTY?address=7&baudrate=19200`` as a user runs it."""
     _fast_fingers_and_a_part(pb_sim)
     ad = adapter(pb_sim)
-    proc = subprocess.run([WSG, "plc-demo", "--url", f"profibus://{ad.path}?address=7&baudrate=19200",
+    proc = subprocess.run([WSG, "plc-demo", "--url", f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000",
                            "--cycles", "1", "--timeout", "30"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "done: 1 cycle(s), 1 part(s) held, 0 without part, 0 error recovery(ies)" in proc.stdout
+
+
+def test_fieldbus_gripper_grips_a_part_over_profibus(pb_sim: SimThread) -> None:
+    """The blocking FieldbusGripper over ``profibus://``: homing, then GRIP holds the placed part."""
+    from pywsg.fieldbus.plc import FieldbusGripper
+    from pywsg.protocol import GripperState
+
+    _fast_fingers_and_a_part(pb_sim)
+    ad = adapter(pb_sim)
+    with FieldbusGripper(f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000", timeout=10) as g:
+        g.homing()
+        assert g.grip(20.0, 100.0, 40.0).state == GripperState.HOLDING

@@ -6,6 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from pywsg.device import ManualClock, VirtualGripper
 from pywsg.fieldbus.controller import FieldbusController
@@ -261,3 +263,20 @@ def test_set_address_from_the_settings_page_drops_the_master_fail_safe(slave: Dp
     assert port.fail_safes == [("PROFIBUS DP", "station address changed to 20")]
     with pytest.raises(ValueError):
         slave.set_address(126)
+
+
+@given(fc=st.integers(0, 255), dsap=st.none() | st.integers(0, 63), ssap=st.none() | st.integers(0, 63),
+       data=st.binary(max_size=64), sa=st.integers(0, 126))
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_telegram_gets_no_exception_and_a_well_formed_answer(
+        slave: DpSlave, fc: int, dsap: int | None, ssap: int | None, data: bytes, sa: int) -> None:
+    """Whatever a master (or noise with a valid FCS) sends: no exception, and the answer, if any, is
+    a short acknowledge or one well-formed telegram to the sender."""
+    tel = fdl.Telegram(slave.address, sa, fc, data, dsap, ssap)   # Set_Slave_Address may move it
+    resp = slave.handle(tel, 0.0)
+    slave.after_response()
+    if resp is None or resp == fdl.SHORT_ACK:
+        return
+    events = fdl.FdlParser().feed(resp)
+    assert len(events) == 1 and isinstance(events[0], fdl.Telegram)
+    assert events[0].da == sa and not events[0].is_request

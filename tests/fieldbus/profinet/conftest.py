@@ -18,7 +18,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -65,7 +65,8 @@ class Wire:
         self.procs.append(p)
         return p
 
-    def sim(self, *extra: str, name: str | None = STATION, ip: str | None = f"{DEVICE_IP}/24") -> Sim:
+    def sim(self, *extra: str, name: str | None = STATION, ip: str | None = f"{DEVICE_IP}/24",
+            web: bool = False) -> Sim:
         argv = [*WSG, "sim", "--json", "--no-uvloop",
                 "--tcp-port", "0", "--udp-port", "0", "--serial", "off", "--web-port", "off",
                 "--profinet", self.iface]
@@ -73,9 +74,26 @@ class Wire:
             argv += ["--profinet-name", name]
         if ip is not None:
             argv += ["--profinet-ip", ip]
+        if web:
+            argv += ["--web-port", "0"]
         p = self.popen(self.device_ns, [*argv, *extra])
-        line = _read_line(p, 20.0, lambda s: '"profinet"' in s)
-        return Sim(p, json.loads(line))
+        lines = _read_lines(p, 20.0, ['"profinet"', *(['"web"'] if web else [])])
+        sim = Sim(p, json.loads(lines[0]))
+        if web:
+            sim.web_url = str(json.loads(lines[1])["url"]).rstrip("/")
+        return sim
+
+    def http(self, method: str, url: str, body: object = None) -> object:
+        """An HTTP request from inside the device namespace (where the sim's web interface listens)."""
+        code = ("import httpx, json, sys; from urllib.parse import urlsplit\n"
+                "u = urlsplit(sys.argv[2]); c = httpx.Client(base_url=f'{u.scheme}://{u.netloc}', timeout=20)\n"
+                "t = c.get('/api/csrf').json()['token']\n"   # a loopback session still sends the CSRF token
+                "r = c.request(sys.argv[1], u.path, json=json.loads(sys.argv[3]), headers={'x-csrf-token': t})\n"
+                "print(json.dumps({'status': r.status_code, 'body': r.json()}))")
+        r = subprocess.run(["ip", "netns", "exec", self.device_ns, sys.executable, "-c", code, method, url,
+                            json.dumps(body)], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+        return json.loads(r.stdout)
 
     def controller(self, *args: str, timeout: float = 60.0, argv: list[str] | None = None) -> dict[str, object]:
         """Run one scenario of pn_controller.py (or ``argv``) in the controller namespace; its last stdout
@@ -107,6 +125,7 @@ class Wire:
 class Sim:
     proc: subprocess.Popen[str]
     banner: dict[str, object]
+    web_url: str = ""
 
     def stop(self) -> str:
         """SIGTERM, wait; its stderr."""
@@ -116,8 +135,9 @@ class Sim:
         return self.proc.stderr.read()
 
 
-def _read_line(p: subprocess.Popen[str], timeout: float, want: Callable[[str], bool]) -> str:
-    """The first stdout line ``want`` accepts (a reader thread: select() cannot see text-buffered lines)."""
+def _read_lines(p: subprocess.Popen[str], timeout: float, wanted: list[str]) -> list[str]:
+    """For each text in ``wanted`` the first stdout line holding it (a reader thread: select() cannot see
+    text-buffered lines)."""
     assert p.stdout is not None
     lines: queue.Queue[str] = queue.Queue()
     stdout = p.stdout
@@ -129,8 +149,9 @@ def _read_line(p: subprocess.Popen[str], timeout: float, want: Callable[[str], b
 
     threading.Thread(target=pump, daemon=True).start()
     deadline = time.monotonic() + timeout
-    seen = []
-    while time.monotonic() < deadline:
+    seen: list[str] = []
+    found: dict[str, str] = {}
+    while time.monotonic() < deadline and len(found) < len(wanted):
         try:
             line = lines.get(timeout=0.2)
         except queue.Empty:
@@ -138,10 +159,13 @@ def _read_line(p: subprocess.Popen[str], timeout: float, want: Callable[[str], b
         if not line:
             break
         seen.append(line)
-        if want(line):
-            return line
+        for w in wanted:
+            if w in line and w not in found:
+                found[w] = line
+    if len(found) == len(wanted):
+        return [found[w] for w in wanted]
     err = p.stderr.read() if p.stderr and p.poll() is not None else ""
-    raise AssertionError(f"wsg sim printed no PROFINET line within {timeout} s: {seen} {err}")
+    raise AssertionError(f"wsg sim printed no {wanted} lines within {timeout} s: {seen} {err}")
 
 
 @pytest.fixture

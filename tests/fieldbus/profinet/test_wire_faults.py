@@ -123,3 +123,28 @@ def test_sim_without_raw_socket_permission_says_so(tmp_path: Path) -> None:
         pytest.skip("setpriv is not installed")
     assert r.returncode == 1, r
     assert "needs root or CAP_NET_RAW" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_web_shows_the_profinet_bus_and_sets_the_station_name(wire: Wire, tmp_path: Path) -> None:
+    """Fieldbus Monitor: station name, IP, MAC, AR state, cycle time, missed frames (issue 21 item 8);
+    Settings → Command Interface sets the station name of the running device (003 §3.2)."""
+    sim = wire.sim("--settings", str(tmp_path / "settings.json"), web=True)
+    fb = wire.http("GET", f"{sim.web_url}/api/fieldbus")
+    assert isinstance(fb, dict) and fb["status"] == 200
+    buses = {b["name"]: {r["label"]: r["text"] for r in b["rows"]} for b in fb["body"]["buses"]}
+    rows = buses["PROFINET IO"]
+    assert rows["Station name"] == STATION and rows["IP address"].startswith(DEVICE_IP)
+    assert rows["MAC address"] in str(sim.banner["note"]) and rows["AR state"].startswith("No connection")
+    assert rows["Missed frames"] == "0"
+    r = wire.http("POST", f"{sim.web_url}/api/interface", {"profinet_name": "web-named"})
+    assert isinstance(r, dict) and r["status"] == 200, r
+    assert "Applied" in r["body"]["notes"]["profinet_name"]
+    found = wire.controller("hold", "web-named", "0.5")   # DCP finds the new name; an AR runs
+    assert found["inputs"] is not None
+    stored = json.loads((tmp_path / "settings.interface.json").read_text())
+    assert stored["profinet_name"] == "web-named"
+    fb = wire.http("GET", f"{sim.web_url}/api/fieldbus")
+    assert isinstance(fb, dict)
+    rows = {b["name"]: {r["label"]: r["text"] for r in b["rows"]} for b in fb["body"]["buses"]}["PROFINET IO"]
+    assert rows["Last AR end"] == "released by the controller" and int(rows["Frames in / out"].split(" / ")[0]) > 10
+    assert "Traceback" not in sim.stop()

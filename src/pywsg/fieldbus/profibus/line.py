@@ -1,11 +1,14 @@
 """The DP slave on a serial line: a new pty (tests, a master in the same machine) or a real port
 (a USB RS-485 adapter), on the asyncio loop of the virtual gripper.
 
-Bytes in → :class:`~.fdl.FdlParser` → :class:`~.dp.DpSlave` → the response written at once. With a
-pty the slave keeps its own handle on the client side open, so a master closing and reopening the
+Bytes in → :class:`~.fdl.FdlParser` → :class:`~.dp.DpSlave` → the response written at once (on a
+real port not before the master's min TSDR from Set_Prm, so its RS-485 driver has turned round). With
+a pty the slave keeps its own handle on the client side open, so a master closing and reopening the
 port never turns the line into ``EIO``. A real port is opened 8E1 (PROFIBUS's UART character: 8 data
-bits, even parity, 1 stop bit) at the given baud rate; on a pty the kernel accepts the parity setting
-but enforces nothing, so a parity error can only happen on a real port, where the UART drops it.
+bits, even parity, 1 stop bit) at the given baud rate, with input parity checking on and characters
+with a parity error dropped (``INPCK | IGNPAR``; pyserial turns checking off), so the telegram they
+belong to fails its length or FCS and gets no answer. A pty has no parity: its kernel driver clears
+the parity bit whatever is asked (CS8, no parity), so parity cannot be checked there.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import asyncio
 import errno
 import logging
 import os
+import termios
 import tty
 from collections.abc import Callable
 from typing import Any
@@ -47,6 +51,13 @@ def check_baudrate(baudrate: int) -> None:
     if baudrate not in rates:
         raise ValueError(f"PROFIBUS baud rate {baudrate} is not one WEIS5555.gsd declares "
                          f"({', '.join(str(r) for r in rates)})")
+
+
+def _check_parity(fd: int) -> None:
+    """Turn input parity checking on and drop characters with a parity error (pyserial clears INPCK)."""
+    attrs = termios.tcgetattr(fd)
+    attrs[0] = (attrs[0] | termios.INPCK | termios.IGNPAR) & ~termios.PARMRK
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
 
 
 class ProfibusAdapter:
@@ -91,6 +102,7 @@ class ProfibusAdapter:
                                          parity=serial.PARITY_EVEN, stopbits=serial.STOPBITS_ONE, timeout=0)
             self._fd = self._serial.fileno()
             self.path = self.requested
+            _check_parity(self._fd)
         os.set_blocking(self._fd, False)
         self._loop.add_reader(self._fd, self._on_readable)
         log.info("PROFIBUS DP slave %d on %s at %d bit/s", self.slave.address, self.path, self.baudrate)
@@ -139,11 +151,21 @@ class ProfibusAdapter:
                     log.debug("PROFIBUS %s: %s, %d bytes dropped", self.path, ev.reason, ev.skipped)
                 continue
             response = slave.handle(ev, self._loop.time())
-            if response is not None:
-                self._write(response)
-                slave.after_response()
+            if response is None:
+                continue
+            delay = slave.min_tsdr / self.baudrate if self._serial is not None else 0.0
+            if delay > 0.0002:   # below that, the time to get here has already passed it
+                self._loop.call_later(delay, self._respond, response)
+            else:
+                self._respond(response)
         if slave.watchdog_deadline is not None and self._timer is None:
             self._timer = self._loop.call_at(slave.watchdog_deadline, self._on_watchdog)
+
+    def _respond(self, data: bytes) -> None:
+        if self._closed:
+            return
+        self._write(data)
+        self.slave.after_response()
 
     def _write(self, data: bytes) -> None:
         try:

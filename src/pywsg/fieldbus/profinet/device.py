@@ -274,6 +274,22 @@ class ProfinetDevice:
         except OSError as exc:
             log.warning("PROFINET: send on %s: %s", self.iface, exc.strerror or exc)
 
+    # --- web interface (Settings → Command Interface, 003 §3.2) ------------------------------------------
+    def apply_settings(self, name: str | None = None, ip: IpSuite | None = None) -> None:
+        """New NameOfStation and/or IP suite from the web interface (already stored by it). An AR in
+        progress ends: its controller addressed the old station (the 003 §3.2 warning)."""
+        changed = (name is not None and name != self.station.name) or (ip is not None and ip != self.station.ip)
+        if not changed:
+            return
+        if self.cm.io_ar is not None:
+            self._abort(self.cm.io_ar, "station name or IP changed in the web interface")
+        if name is not None:
+            self.station.name = name
+        if ip is not None:
+            self.station.ip = ip
+            self.ipstack.ip = ip.ip
+        self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
+
     # --- DCP Set ----------------------------------------------------------------------------------
     def _set_name(self, name: str, permanent: bool) -> int:
         if self.cm.io_ar is not None and name != self.station.name:

@@ -136,7 +136,15 @@ class PermanentStore:
         return suite if ip_suite_error(suite.ip, suite.mask, suite.gateway) is None else None
 
     def save(self, **values: Any) -> None:
-        """Merge ``values`` and write the file atomically (keeps keys others own)."""
+        """Merge ``values`` into the file as it is now (the web interface writes it too) and write it
+        atomically (keeps keys others own)."""
+        if self.path is not None and self.path.exists():
+            try:
+                current = json.loads(self.path.read_text(encoding="utf-8"))
+                if isinstance(current, dict):
+                    self.data = current
+            except (OSError, ValueError):
+                pass
         self.data.update(values)
         if self.path is None:
             return
