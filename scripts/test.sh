@@ -29,6 +29,8 @@ echo "== ruff"
 .venv/bin/ruff check src tests benchmarks
 echo "== mypy (strict)"
 .venv/bin/mypy
+echo "== import contracts (.importlinter)"
+.venv/bin/lint-imports --no-cache
 echo "== pytest"
 .venv/bin/python -m pytest -q "$@"
 if [ $# -eq 0 ]; then

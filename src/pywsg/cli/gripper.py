@@ -25,7 +25,7 @@ def _driver() -> Any:
 
     found = getattr(pywsg, "AsyncGripper", None)  # the public name (docs/architecture.md)
     if found is None:
-        from ..client.aio import AsyncGripper as found
+        from ..client import AsyncGripper as found
     return found
 
 

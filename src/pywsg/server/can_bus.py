@@ -9,7 +9,7 @@ or reordered fragment fails the CRC (answered E_CHECKSUM_ERROR like any corrupt 
 parser resynchronises on the next preamble. Other identifiers, remote and error frames are ignored
 (acceptance filter on the bus, checked again per frame), and so are CAN FD frames and any frame over
 8 data bytes: the mapping is classic CAN. The driver side is
-:mod:`pywsg.client.can_transport`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
+:mod:`pywsg.client.can`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
 interface.
 """
 

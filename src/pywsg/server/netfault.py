@@ -12,6 +12,7 @@ fault          what the client sees                                         inte
 ``bandwidth``  replies trickle at ``rate`` bytes/s                          TCP, UDP, serial, proxy
 ``slicer``     replies cut into ``size``-byte segments, ``gap`` ms apart    TCP, serial, proxy
 ``reset``      TCP connections reset (RST) ``timeout`` s after they open    TCP, proxy
+               (those already open: after the switch)
 ``silent``     nothing at all: requests are not executed, no replies;       TCP, UDP, serial, proxy
                the connection stays open (closed after ``timeout`` s > 0)
 ``drop``       each datagram lost with probability ``p`` (both directions) UDP, proxy (UDP)
@@ -282,10 +283,10 @@ class Shaper:
         for n, piece in enumerate(pieces):
             if n and s.slice_delay:
                 t += s.slice_delay
-            if s.rate:
-                t = max(t, self._free if self.ordered else now) + len(piece) / s.rate
+            if s.rate:  # the link carries one piece at a time, datagrams too
+                t = max(t, self._free) + len(piece) / s.rate
             self._at(loop, t, piece)
-            if self.ordered:
+            if self.ordered or s.rate:
                 self._free = t
         self._last = t
         if self._held is not None:

@@ -87,3 +87,26 @@ async def test_bad_fcs_on_the_device_path_gets_no_answer(line: tuple[ProfibusAda
     assert ad.line_errors == 1
     resp, _ = await _ask(fd, good)
     assert resp == fdl.encode(M, 7, fdl.RES_OK)
+
+
+async def test_a_port_that_goes_away_is_reported_once_not_spun_on() -> None:
+    """The adapter unplugged (here: the other side of the pty closed, reads fail with EIO): the slave
+    stops reading, the Bus State says Offline and why, and the loop stays free."""
+    master_fd, slave_fd = os.openpty()
+    path = os.ttyname(slave_fd)
+    controller = FieldbusController(VirtualGripper("wsg50", clock=ManualClock()))
+    ad = await ProfibusAdapter(controller, path, address=7, baudrate=9600).start()
+    try:
+        os.close(slave_fd)
+        os.close(master_fd)
+        deadline = time.monotonic() + 5
+        while ad.failure is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        assert ad.failure is not None, "the lost port was not noticed"
+        assert ad.bus_state()["Interface state"].startswith("Offline: " + path)
+        t0 = time.process_time()
+        await asyncio.sleep(0.2)
+        assert time.process_time() - t0 < 0.15           # no busy loop on a dead descriptor
+    finally:
+        await ad.close()
+        controller.close()

@@ -10,13 +10,12 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .exchange import ModbusExchange
-    from .server import ModbusHandle, check_pdu, serve_modbus
+    from .server import STANDARD_PORT, ModbusHandle, check_pdu, serve_modbus
 
 __all__ = ["STANDARD_PORT", "ModbusExchange", "ModbusHandle", "check_pdu", "serve_modbus"]
 
-STANDARD_PORT = 502
-
-_HOME = {"ModbusHandle": "server", "check_pdu": "server", "serve_modbus": "server", "ModbusExchange": "exchange"}
+_HOME = {"ModbusHandle": "server", "check_pdu": "server", "serve_modbus": "server", "STANDARD_PORT": "server",
+         "ModbusExchange": "exchange"}
 
 
 def __getattr__(name: str) -> Any:

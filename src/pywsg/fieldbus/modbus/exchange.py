@@ -18,9 +18,10 @@ from pymodbus.exceptions import ModbusException
 
 from ..exchange import FieldbusConnectionError
 from ..image import INPUT_REGISTERS, OUTPUT_REGISTERS, bytes_to_registers, registers_to_bytes
-from . import STANDARD_PORT
 
 T = TypeVar("T")
+
+STANDARD_PORT = 502  # Modbus/TCP's registered port (the server's default too)
 
 
 

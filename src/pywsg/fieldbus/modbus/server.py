@@ -44,9 +44,10 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from ...server.conncap import cap_modbus_server
 from ..controller import FieldbusController
 from ..image import COILS, DISCRETE_INPUTS, INPUT_REGISTERS, OUTPUT_REGISTERS, InputImage, OutputImage, int_of
-from . import STANDARD_PORT
 
 log = logging.getLogger(__name__)
+
+STANDARD_PORT = 502  # Modbus/TCP's registered port
 
 
 _FC_READ_COILS, _FC_READ_DI, _FC_READ_HR, _FC_READ_IR = 1, 2, 3, 4

@@ -81,6 +81,7 @@ class ProfibusAdapter:
         self.path = ""
         self.line_errors = 0
         self.dropped_responses = 0
+        self.failure: str | None = None   # why the port stopped working
         self._fd = -1
         self._keep_fd = -1
         self._serial: Any = None
@@ -126,7 +127,9 @@ class ProfibusAdapter:
     def bus_state(self) -> dict[str, str]:
         """The Fieldbus Monitor's Bus State rows (003 §6)."""
         state = "Offline" if self._closed else _STATE_TEXT[self.slave.state]
-        if self.slave.state is DpState.WAIT_PRM and self.slave.last_reason and not self._closed:
+        if self.failure and not self._closed:
+            state = f"Offline: {self.failure}"
+        elif self.slave.state is DpState.WAIT_PRM and self.slave.last_reason and not self._closed:
             state += f": {self.slave.last_reason}"
         rate = bitrate_text(self.baudrate) + (" (pty: nominal)" if self.requested == "pty" else "")
         return {"Station Address": str(self.slave.address), "Bitrate": rate, "Interface state": state}
@@ -137,10 +140,13 @@ class ProfibusAdapter:
         except BlockingIOError:
             return
         except OSError as exc:
-            if exc.errno == errno.EIO:
-                return
-            raise
+            if exc.errno == errno.EIO and self._serial is None:
+                return   # pty: no master side open (cannot happen while we keep our handle)
+            self._lost(exc)
+            return
         if not data:
+            if self._serial is not None:
+                self._lost(OSError("end of file"))
             return
         assert self._loop is not None
         slave = self.slave
@@ -160,6 +166,14 @@ class ProfibusAdapter:
                 self._respond(response)
         if slave.watchdog_deadline is not None and self._timer is None:
             self._timer = self._loop.call_at(slave.watchdog_deadline, self._on_watchdog)
+
+    def _lost(self, exc: OSError) -> None:
+        """The port failed (a USB adapter unplugged): stop reading it, once, and say so."""
+        if self.failure is None:
+            self.failure = f"{self.path}: {exc.strerror or exc}"
+            log.error("PROFIBUS line lost: %s", self.failure)
+        if self._loop is not None and self._fd >= 0:
+            self._loop.remove_reader(self._fd)
 
     def _respond(self, data: bytes) -> None:
         if self._closed:

@@ -11,8 +11,8 @@ from collections.abc import AsyncIterator, Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ..errors import ConnectionLostError, TimeoutError, WsgError
-from ..protocol import (
+from ...errors import ConnectionLostError, TimeoutError, WsgError
+from ...protocol import (
     ChecksumMismatch,
     Command,
     Frame,
@@ -23,13 +23,10 @@ from ..protocol import (
     SystemFlag,
     parse_datagram,
 )
-from . import calls, lifetime
-from .aio_commands import AsyncCommands, AsyncFinger
-from .aio_handles import AsyncMotion, AsyncStream, AWaiter
-from .aio_transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
-from .calls import Call
-from .commlog import RX, TX, CommHook, CommLog, frame_log
-from .core import (
+from .. import calls, lifetime
+from ..calls import Call
+from ..commlog import RX, TX, CommHook, CommLog, frame_log
+from ..core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
     ReconnectPolicy,
@@ -42,9 +39,12 @@ from .core import (
     status_of,
     stream_id,
 )
-from .demux import Demux
-from .types import Reply, Sample, State
-from .url import Endpoint, parse_url
+from ..demux import Demux
+from ..types import Reply, Sample, State
+from ..url import Endpoint, parse_url
+from .commands import AsyncCommands, AsyncFinger
+from .handles import AsyncMotion, AsyncStream, AWaiter
+from .transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
 
 __all__ = ["AsyncFinger", "AsyncGripper", "AsyncMotion", "AsyncStream", "ReconnectPolicy"]
 

@@ -8,18 +8,26 @@ import builtins
 import collections
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from ..errors import TimeoutError
-from ..protocol import Command, Frame, Status
-from .calls import Call
-from .core import sample_of
-from .demux import Sink, Waiter
-from .motion import MotionBase
-from .types import Sample
+from ...errors import TimeoutError
+from ...protocol import Command, Frame, Status, SystemFlag
+from ..calls import Call
+from ..core import sample_of
+from ..demux import Sink, Waiter
+from ..motion import MotionBase
+from ..types import Sample
 
-if TYPE_CHECKING:
-    from .aio import AsyncGripper
+
+class Host(Protocol):
+    """What the handles need from the asyncio shell (:class:`~pywsg.client.AsyncGripper` implements it),
+    so the shell imports the handles and not the other way round."""
+
+    motion_timeout: float
+
+    async def _flags_quietly(self) -> SystemFlag | None: ...
+
+    async def _unsubscribe(self, stream: AsyncStream) -> None: ...
 
 
 class AWaiter(Waiter):
@@ -55,7 +63,7 @@ class AsyncMotion(MotionBase):
 
     _final: AWaiter | None
 
-    def __init__(self, gripper: AsyncGripper, call: Call[Any], final: AWaiter | None,
+    def __init__(self, gripper: Host, call: Call[Any], final: AWaiter | None,
                  frame: Frame | None = None) -> None:
         super().__init__(call, final, frame)
         self._gripper = gripper
@@ -88,7 +96,7 @@ class AsyncStream(Sink):
     ``await stream.close()`` (or ``async with``) ends the subscription.
     """
 
-    def __init__(self, gripper: AsyncGripper, command: Command, maxlen: int = 10000) -> None:
+    def __init__(self, gripper: Host, command: Command, maxlen: int = 10000) -> None:
         self._gripper = gripper
         self.command = command
         self._q: collections.deque[Sample] = collections.deque()

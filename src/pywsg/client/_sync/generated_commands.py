@@ -1,19 +1,19 @@
-"""GENERATED from ``aio_commands.py`` by ``scripts/unasync_client.py`` - do not edit; edit the source
-and run the script. The command methods of the blocking :class:`~pywsg.client.sync.Gripper`:
-:class:`Commands` (mixed into it) and :class:`Finger`.
+"""GENERATED from ``pywsg/client/_async/commands.py`` by ``scripts/unasync_client.py`` - do not
+edit; edit the source and run the script. The command methods of the blocking
+:class:`~pywsg.client.Gripper`: :class:`Commands` (mixed into it) and :class:`Finger`.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from ..protocol import FingerFlag, GripperState, HomingDirection, SystemFlag
-from . import calls
-from .calls import Call
-from .types import FingerInfo, Limits, SoftLimits, Statistics, SystemInfo
+from ...protocol import FingerFlag, GripperState, HomingDirection, SystemFlag
+from .. import calls
+from ..calls import Call
+from ..types import FingerInfo, Limits, SoftLimits, Statistics, SystemInfo
 
 if TYPE_CHECKING:
-    from .sync_handles import Motion
+    from .handles import Motion
 
 T = TypeVar("T")
 

@@ -1,8 +1,8 @@
 """The gripper's commands as methods, said once: :class:`AsyncCommands` (mixed into
-:class:`~pywsg.client.aio.AsyncGripper`) and :class:`AsyncFinger`.
+:class:`~pywsg.client.AsyncGripper`) and :class:`AsyncFinger`.
 
-This file is the source: ``sync_commands.py`` (``Commands`` and ``Finger`` of the blocking
-:class:`~pywsg.client.sync.Gripper`) is generated from it by ``scripts/unasync_client.py`` (``async
+This file is the source: ``_sync/generated_commands.py`` (``Commands`` and ``Finger`` of the blocking
+:class:`~pywsg.client.Gripper`) is generated from it by ``scripts/unasync_client.py`` (``async
 def`` -> ``def``, ``await`` dropped, ``Async*`` -> ``*``), the way httpcore keeps its sync and async
 code from drifting; ``tests/client/test_unasync.py`` fails when the two differ. Each method is one
 line: what the request is and how its reply decodes live in :mod:`pywsg.client.calls` (built from
@@ -15,13 +15,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from ..protocol import FingerFlag, GripperState, HomingDirection, SystemFlag
-from . import calls
-from .calls import Call
-from .types import FingerInfo, Limits, SoftLimits, Statistics, SystemInfo
+from ...protocol import FingerFlag, GripperState, HomingDirection, SystemFlag
+from .. import calls
+from ..calls import Call
+from ..types import FingerInfo, Limits, SoftLimits, Statistics, SystemInfo
 
 if TYPE_CHECKING:
-    from .aio_handles import AsyncMotion
+    from .handles import AsyncMotion
 
 T = TypeVar("T")
 

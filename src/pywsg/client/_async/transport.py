@@ -16,7 +16,7 @@ import socket
 from collections.abc import Callable
 from typing import Any
 
-from .url import Endpoint
+from ..url import Endpoint
 
 OnData = Callable[[memoryview], None]
 OnDatagram = Callable[[bytes], None]

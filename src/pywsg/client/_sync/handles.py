@@ -1,5 +1,9 @@
 """What the blocking driver's calls hand back: :class:`Motion` (a running motion, ``wait=False``)
-and :class:`Stream` (auto-update samples); :class:`Callbacks`, the thread that runs stream callbacks."""
+and :class:`Stream` (auto-update samples); :class:`Callbacks`, the thread that runs stream callbacks,
+and :class:`Reader`, the background reader while streams run.
+
+They see the shell through :class:`Host`, the few methods they call, never the
+:class:`~pywsg.client.Gripper` class itself (so the shell imports them and not the other way round)."""
 
 from __future__ import annotations
 
@@ -9,25 +13,44 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from ..errors import TimeoutError
-from ..protocol import Command, Frame, Status
-from .calls import Call
-from .core import sample_of
-from .demux import Sink, Waiter
-from .motion import MotionBase
-from .types import Sample
+from ...errors import TimeoutError
+from ...protocol import Command, Frame, Status, SystemFlag
+from ..calls import Call
+from ..core import sample_of
+from ..demux import Sink, Waiter
+from ..motion import MotionBase
+from ..types import Sample
 
-if TYPE_CHECKING:
-    from .sync import Gripper
+#: s the background reader blocks at a time (how fast it notices stop())
+READ_SLICE = 0.05
+
+
+class Host(Protocol):
+    """What the handles need from the blocking shell (:class:`~pywsg.client.Gripper` implements it)."""
+
+    motion_timeout: float
+
+    @property
+    def _transport(self) -> object: ...
+
+    def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True, deadline: float = 0.0) -> None: ...
+
+    def _flags_quietly(self) -> SystemFlag | None: ...
+
+    def _callback(self, stream: Stream, sample: Sample) -> None: ...
+
+    def _unsubscribe(self, stream: Stream) -> None: ...
+
+    def _auto_reconnect(self) -> bool: ...
 
 
 class Motion(MotionBase):
     """A running motion (``wait=False``): ``motion.wait(timeout)`` returns None on success and raises
     the matching :class:`~pywsg.errors.WsgError` otherwise."""
 
-    def __init__(self, gripper: Gripper, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
+    def __init__(self, gripper: Host, call: Call[Any], final: Waiter | None, frame: Frame | None = None) -> None:
         super().__init__(call, final, frame)
         self._gripper = gripper
 
@@ -52,7 +75,7 @@ class Stream(Sink):
     """Auto-update samples: iterate (``for s in stream``, blocks), ``get(timeout)``, ``drain()``, or
     register ``callback``\\s. Keeps up to ``maxlen`` unread samples (older ones counted in ``dropped``)."""
 
-    def __init__(self, gripper: Gripper, command: Command, maxlen: int = 10000,
+    def __init__(self, gripper: Host, command: Command, maxlen: int = 10000,
                  callback: Callable[[Sample], None] | None = None) -> None:
         self._gripper = gripper
         self.command = command
@@ -166,3 +189,47 @@ class Callbacks:
                     cb(sample)
                 except Exception:
                     logging.getLogger("pywsg.client").exception("stream callback failed")
+
+
+class Reader:
+    """The background reader: a thread that runs only while auto-update streams are subscribed, so
+    samples arrive while no call waits; with a reconnect policy it reconnects a lost link."""
+
+    def __init__(self, host: Host) -> None:
+        self._host = host
+        self.thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def is_current(self) -> bool:
+        """True on the reader's own thread."""
+        return threading.current_thread() is self.thread
+
+    def start(self) -> None:
+        if self.thread is not None:
+            return
+        self._stop.clear()
+        self.thread = threading.Thread(target=self._run, name="pywsg-reader", daemon=True)
+        self.thread.start()
+
+    def stop(self) -> None:
+        t = self.thread
+        if t is None:
+            return
+        self._stop.set()
+        if t is not threading.current_thread():
+            t.join(2.0)
+        self.thread = None
+
+    def _run(self) -> None:
+        never = Waiter(-1)
+        host = self._host
+        try:
+            while not self._stop.is_set():
+                if host._transport is None:
+                    if not host._auto_reconnect():
+                        return
+                    continue
+                host._wait_for(never, READ_SLICE, abandon=False)
+        finally:
+            if self.thread is threading.current_thread():
+                self.thread = None

@@ -1,4 +1,4 @@
-"""Blocking transports of :class:`~pywsg.client.sync.Gripper`: plain sockets and a serial fd.
+"""Blocking transports of :class:`~pywsg.client.Gripper`: plain sockets and a serial fd.
 
 ``recv(timeout)`` returns the bytes read, ``b""`` when ``timeout`` s passed without data, and
 raises ``ConnectionError`` when the other side is gone.
@@ -19,7 +19,7 @@ import struct
 import sys
 from typing import Any
 
-from .url import Endpoint
+from ..url import Endpoint
 
 _RECV_SIZE = 4096  # a frame is at most 1032 bytes; the parser joins partial reads
 _DGRAM_SIZE = 65536
@@ -180,15 +180,3 @@ class SerialSyncTransport(SyncTransport):
             self.port.close()
         except Exception:
             pass
-
-
-def open_sync(ep: Endpoint, timeout: float) -> SyncTransport:
-    if ep.scheme == "tcp":
-        return TcpSyncTransport(ep, timeout)
-    if ep.scheme == "udp":
-        return UdpSyncTransport(ep, timeout)
-    if ep.scheme == "can":
-        from .can_transport import CanSyncTransport
-
-        return CanSyncTransport(ep, timeout)
-    return SerialSyncTransport(ep, timeout)

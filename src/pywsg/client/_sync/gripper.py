@@ -16,8 +16,8 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ..errors import ConnectionLostError, TimeoutError, WsgError
-from ..protocol import (
+from ...errors import ConnectionLostError, TimeoutError, WsgError
+from ...protocol import (
     ChecksumMismatch,
     Command,
     Frame,
@@ -28,10 +28,10 @@ from ..protocol import (
     SystemFlag,
     parse_datagram,
 )
-from . import calls, lifetime
-from .calls import Call
-from .commlog import RX, TX, CommHook, CommLog, frame_log
-from .core import (
+from .. import calls, lifetime
+from ..calls import Call
+from ..commlog import RX, TX, CommHook, CommLog, frame_log
+from ..core import (
     DEFAULT_MOTION_TIMEOUT,
     DEFAULT_TIMEOUT,
     ReconnectPolicy,
@@ -44,12 +44,13 @@ from .core import (
     status_of,
     stream_id,
 )
-from .demux import Demux, Waiter
-from .sync_commands import Commands, Finger
-from .sync_handles import Callbacks, Motion, Stream
-from .sync_transport import SyncTransport, open_sync
-from .types import Reply, Sample, State
-from .url import Endpoint, parse_url
+from ..demux import Demux, Waiter
+from ..types import Reply, Sample, State
+from ..url import Endpoint, parse_url
+from .connect import open_sync
+from .generated_commands import Commands, Finger
+from .handles import Callbacks, Motion, Reader, Stream
+from .transport import SyncTransport
 
 __all__ = ["Finger", "Gripper", "Motion", "ReconnectPolicy", "Stream"]
 
@@ -57,13 +58,12 @@ log = logging.getLogger("pywsg.client")
 T = TypeVar("T")
 
 _DEBUG = logging.DEBUG
-_PUMP_SLICE = 0.05  # s the background reader blocks at a time (how fast it notices close())
 
 
 class Gripper(Commands):
     """Blocking driver for a WSG gripper: ``with Gripper("tcp://192.168.1.20") as g: g.home()``.
 
-    Same methods and arguments as :class:`~pywsg.client.aio.AsyncGripper`, without ``await``.
+    Same methods and arguments as :class:`~pywsg.client.AsyncGripper`, without ``await``.
     ``connect=False`` defers opening the connection to ``connect()`` / ``with``.
     """
 
@@ -89,8 +89,7 @@ class Gripper(Commands):
         self._comm = CommLog()
         self._subs: dict[Command, tuple[float, bool]] = {}
         self._streams: dict[Command, list[Stream]] = {}
-        self._pump: threading.Thread | None = None
-        self._pump_stop = threading.Event()
+        self._reader = Reader(self)   # the background reader while streams run
         self._callbacks = Callbacks()
         self._closing = False
         self._opened_by = 0  # pid that connected it (lifetime)
@@ -147,7 +146,7 @@ class Gripper(Commands):
                 self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
             except WsgError as exc:
                 log.debug("disconnect announcement: %s", exc)
-        self._stop_pump()
+        self._reader.stop()
         self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
         self._callbacks.stop()
 
@@ -200,8 +199,8 @@ class Gripper(Commands):
                 st.revive()
         for cmd, (period, change_only) in list(self._subs.items()):
             self._run(calls.subscribe(cmd, period, change_only))
-        if self._streams and threading.current_thread() is not self._pump:
-            self._start_pump()
+        if self._streams and not self._reader.is_current():
+            self._reader.start()
         flags = self.system_state()
         if flags & SystemFlag.SF_FAST_STOP:
             log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
@@ -382,10 +381,10 @@ class Gripper(Commands):
     # ------------------------------------------------------------------ requests
     def _transport_or_raise(self, cid: int) -> SyncTransport:
         t = self._transport
-        if t is None and self.policy is not None and not self._closing and self._pump is None:
+        if t is None and self.policy is not None and not self._closing and self._reader.thread is None:
             self._auto_reconnect()
             t = self._transport
-        if t is None and self._pump is not None and self.policy is not None:
+        if t is None and self._reader.thread is not None and self.policy is not None:
             deadline = time.monotonic() + self.connect_timeout
             while self._transport is None and time.monotonic() < deadline and not self._closing:
                 time.sleep(0.01)
@@ -645,7 +644,7 @@ class Gripper(Commands):
                 self._streams[cmd].remove(stream)
             raise
         self._subs[cmd] = (period, change_only)
-        self._start_pump()
+        self._reader.start()
         return stream
 
     def _unsubscribe(self, stream: Stream) -> None:
@@ -665,39 +664,10 @@ class Gripper(Commands):
             except WsgError as exc:
                 log.debug("unsubscribe %s: %s", cmd.name, exc)
         if not self._streams:
-            self._stop_pump()
+            self._reader.stop()
 
     def _callback(self, stream: Stream, sample: Sample) -> None:
         self._callbacks.put(stream, sample)
-
-    def _start_pump(self) -> None:
-        if self._pump is not None:
-            return
-        self._pump_stop.clear()
-        self._pump = threading.Thread(target=self._run_pump, name="pywsg-reader", daemon=True)
-        self._pump.start()
-
-    def _stop_pump(self) -> None:
-        p = self._pump
-        if p is None:
-            return
-        self._pump_stop.set()
-        if p is not threading.current_thread():
-            p.join(2.0)
-        self._pump = None
-
-    def _run_pump(self) -> None:
-        never = Waiter(-1)
-        try:
-            while not self._pump_stop.is_set():
-                if self._transport is None:
-                    if not self._auto_reconnect():
-                        return
-                    continue
-                self._wait_for(never, _PUMP_SLICE, abandon=False)
-        finally:
-            if self._pump is threading.current_thread():
-                self._pump = None
 
     def __repr__(self) -> str:
         return f"<Gripper {self.endpoint} {'connected' if self.connected else 'closed'}>"
