@@ -13,7 +13,7 @@ import pytest
 
 from .conftest import DEVICE_IP, STATION, WSG, Wire
 
-pytestmark = [pytest.mark.realtime, pytest.mark.xdist_group("profinet")]
+pytestmark = pytest.mark.realtime   # real time on a real wire; each test has its own namespaces
 
 IFACES = {"dea00001-6c97-11d1-8271-00a02442df7d": "pn_io_device",
           "dea00002-6c97-11d1-8271-00a02442df7d": "pn_io_controller"}

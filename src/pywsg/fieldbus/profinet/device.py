@@ -409,6 +409,9 @@ class ProfinetDevice:
         if codec is None or loop is None:
             return
         ar = codec.ar
+        self._readable()   # frames that waited while the loop was busy count before the watchdog judges
+        if self.codec is not codec:
+            return
         now = time.monotonic()
         out_cr = codec.out_cr
         if self._last_frame_t:
