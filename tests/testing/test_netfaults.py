@@ -195,3 +195,34 @@ def test_fault_free_link_takes_the_fast_path() -> None:
     nf.set("garble", {"p": 1.0})
     nf.clear()
     assert not nf.active
+
+
+async def test_async_driver_under_a_silent_gripper(wsg_sim: SimThread) -> None:
+    """AsyncGripper the same way: a timeout, one more for the lost reply's ghost, then in step."""
+    from pywsg.client import AsyncGripper
+
+    async with AsyncGripper(wsg_sim.url, timeout=0.1) as g:
+        assert await g.loop(b"a") == b"a"
+        wsg_sim.world.net("silent")
+        with pytest.raises(TimeoutError):
+            await g.loop(b"b")
+        wsg_sim.world.net("silent", on=False)
+        with pytest.raises(TimeoutError):
+            await g.loop(b"c")  # its reply went to the ghost of "b"
+        assert await g.loop(b"d") == b"d"
+
+
+def test_can_frames_dropped_and_garbled() -> None:
+    """On the (inferred) CAN interface the faults act on each 8-byte CAN frame: a lost fragment spoils a reply."""
+    pytest.importorskip("can")
+    import uuid
+
+    channel = f"wsg-{uuid.uuid4().hex[:8]}"
+    with SimThread(clock="manual", tcp_port=None, udp_port=None, can_channel=channel) as sim, \
+            Gripper(f"can://{channel}?interface=virtual", timeout=0.2) as g:
+        assert g.loop(b"over can") == b"over can"
+        sim.world.net("drop", p=1.0)
+        with pytest.raises(TimeoutError):
+            g.width()
+        sim.world.net("clear")
+        assert g.temperature() > 0  # another command: in step at once

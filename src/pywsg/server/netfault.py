@@ -20,6 +20,9 @@ fault          what the client sees                                         inte
 ``garble``     each byte flipped with probability ``p`` (both directions)  serial, TCP, UDP, proxy
 =============  ==========================================================  ======================
 
+On CAN (:mod:`pywsg.server.can_bus`) each 8-byte CAN frame counts as a datagram (drop, reorder,
+latency, garble, silent); Modbus/TCP has none of these hooks.
+
 Times of the network are real seconds (``time.monotonic``), not the gripper's clock: a manual or
 scaled gripper clock does not slow down or speed up the wire. Random choices come from one
 ``random.Random(seed)`` per :class:`NetFaults` (``seed`` 0 unless given), so a test run repeats.
@@ -242,7 +245,7 @@ class Shaper:
     overtake each other with jitter, be dropped or held back (reorder).
     """
 
-    def __init__(self, faults: NetFaults, write: Callable[[bytes], None], ordered: bool = True) -> None:
+    def __init__(self, faults: NetFaults, write: Callable[[bytes], object], ordered: bool = True) -> None:
         self.faults = faults
         self.write = write
         self.ordered = ordered

@@ -85,6 +85,27 @@ def hold(name: str, seconds: float, cycle_ms: int = 16) -> None:
         state=state)
 
 
+def diag(name: str) -> None:
+    """FASTSTOP raised and acknowledged over the AR: the diagnosis alarms the controller receives."""
+    got: list[dict[str, Any]] = []
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    dev.on_alarm(lambda a: got.append({
+        "type": a.alarm_type, "slot": a.slot_number, "subslot": a.subslot_number,
+        "items": [(getattr(i, "channel_error_type", None), getattr(i, "channel_properties", 0) >> 11 & 3)
+                  for i in a.items]}))
+    cyc = dev.start_cyclic(setup(16))
+    time.sleep(0.3)
+    for out_bytes, pause in ((bytes([0x20, 0, 0, 0, 0, 0, 0, 0]), 0.6),   # FASTSTOP edge
+                             (bytes(8), 0.2),                              # FASTSTOP back to 0
+                             (bytes([0x10, 0, 0, 0, 0, 0, 0, 0]), 0.6)):   # STOP/ACK: acknowledge
+        cyc.set_output_data(1, 1, out_bytes)
+        time.sleep(pause)
+    state = cyc.state.value
+    cyc.stop()
+    dev.close()
+    out(alarms=got, state=state)
+
+
 def dcp_scenario(name: str, mac: str) -> None:
     """Set name/IP (temporary and permanent), Get, Signal, Reset to factory — through profinet-py."""
     sock = ethernet_socket(IFACE, 3)
@@ -172,6 +193,8 @@ def main() -> None:
         asyncio.run(_scl(args[0], int(args[1]), int(args[2])))
     elif scenario == "hold":
         hold(args[0], float(args[1]))   # argv[5] "silent": vanish without a Release
+    elif scenario == "diag":
+        diag(args[0])
     elif scenario == "dcp":
         dcp_scenario(args[0], args[1])
     elif scenario == "flood":

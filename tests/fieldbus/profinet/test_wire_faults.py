@@ -17,7 +17,7 @@ from pywsg.protocol import SystemFlag
 
 from .conftest import CONTROLLER, DEVICE_IP, STATION, Wire
 
-pytestmark = [pytest.mark.realtime, pytest.mark.xdist_group("profinet")]
+pytestmark = pytest.mark.realtime   # real time on a real wire; each test has its own namespaces
 
 
 def _inputs(result: dict[str, object]) -> InputImage:
