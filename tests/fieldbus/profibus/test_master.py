@@ -230,10 +230,14 @@ def test_sync_and_freeze_from_pyprofibus(pb_sim: SimThread) -> None:
         run_until(master, desc, lambda d: d is not None, "Data_Exch")
         assert ad.slave.sync_enabled and ad.slave.freeze_enabled
 
+        # One Global_Control with both commands: pyprofibus's syncMode() and freezeMode() each queue a
+        # telegram for the broadcast address, and its PHY keeps only the last one queued per address.
+        gc = pyprofibus.dp.DpTelegram_GlobalControl(da=fdl.BROADCAST, sa=MASTER)
+        gc.controlCommand = gc.CCMD_SYNC | gc.CCMD_FREEZE
+
         def both_modes(d: bytes | None) -> bool:
             if not (ad.slave.sync_mode and ad.slave.freeze_mode) and desc.isConnected():
-                master.syncMode(0)          # (again, if a re-parameterisation ended them)
-                master.freezeMode(0)
+                master.dpTrans.send(pyprofibus.fdl.FdlFCB(enable=False), gc)   # (again after a re-Set_Prm)
             return ad.slave.sync_mode and ad.slave.freeze_mode
         run_until(master, desc, both_modes, "Sync and Freeze modes")
         diag = ad.slave.diagnosis(MASTER)
