@@ -101,10 +101,12 @@ def test_wsg_proxy_net_and_control_switch_faults_at_runtime() -> None:
             proc.communicate(timeout=15)
 
 
-def test_wsg_proxy_refuses_a_bad_net_option() -> None:
+def test_wsg_proxy_refuses_a_bad_net_option_and_a_public_control_port() -> None:
     done = wsg("proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--net", "latency:ms=-4")
     assert done.returncode == 2
     assert "--net" in done.stderr and "ms: must be within" in done.stderr
+    done = wsg("proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--control", "0.0.0.0:0")
+    assert done.returncode == 2 and "loopback only" in done.stderr and "Traceback" not in done.stderr
 
 
 def test_control_api_refuses_browser_pages_and_foreign_hosts(tapped: tuple[SimThread, Proxy, LoopThread]) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 
 import click
 
+from .main import SuggestingGroup
 from .runner import EXIT_CONNECTION, NumberArgsCommand
 
 DEFAULT_SIM = "http://127.0.0.1:8080"
@@ -107,7 +108,7 @@ def _show(ctx: click.Context, reply: dict[str, Any]) -> None:
         click.echo("\n".join(_state_lines(reply)))
 
 
-@click.group("world")
+@click.group("world", cls=SuggestingGroup)
 @click.option("--sim", envvar="WSG_SIM", default=DEFAULT_SIM, show_default=True, metavar="URL",
               help="The sim's web address (wsg sim --web-port), or set WSG_SIM.")
 @click.option("--password", envvar="WSG_WEB_PASSWORD", default=None,
