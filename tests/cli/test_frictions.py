@@ -55,6 +55,7 @@ def test_monitor_on_udp_beside_commands_on_tcp(sim: Sim) -> None:
     (["grip", "20", "--forse", "30"], "Did you mean '--force'?"),
     (["mvoe"], "No such command 'mvoe'. Did you mean 'move'?"),
     (["world", "heat", "--dleta", "3"], "No such option '--dleta'"),
+    (["world", "haet", "3"], "No such command 'haet'. Did you mean 'heat'?"),
 ])
 def test_typos_get_a_suggestion(args: list[str], hint: str) -> None:
     r = run_wsg(*args, url=f"tcp://127.0.0.1:{free_port()}")

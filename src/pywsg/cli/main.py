@@ -60,7 +60,23 @@ def configure_logging(verbose: int) -> None:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
 
 
-class LazyGroup(click.Group):
+class SuggestingGroup(click.Group):
+    """A click group that answers a mistyped command name with the names it is close to."""
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple[str | None, click.Command | None,
+                                                                             list[str]]:
+        """click's lookup, plus "Did you mean 'move'?" for a mistyped command name (difflib)."""
+        name = click.utils.make_str(args[0])
+        if self.get_command(ctx, name) is None and not ctx.resilient_parsing and not name.startswith("-"):
+            from .runner import close_matches
+
+            near = close_matches(name, self.list_commands(ctx))
+            if near:
+                ctx.fail(f"No such command {name!r}. Did you mean " + " or ".join(repr(n) for n in near) + "?")
+        return super().resolve_command(ctx, args)
+
+
+class LazyGroup(SuggestingGroup):
     """A click group that imports each subcommand's module on first use."""
 
     def _commander(self) -> dict[str, click.Command]:
@@ -101,18 +117,6 @@ class LazyGroup(click.Group):
             if rows:
                 with formatter.section(title):
                     formatter.write_dl(rows)
-
-    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple[str | None, click.Command | None,
-                                                                             list[str]]:
-        """click's lookup, plus "Did you mean 'move'?" for a mistyped command name (difflib)."""
-        name = click.utils.make_str(args[0])
-        if self.get_command(ctx, name) is None and not ctx.resilient_parsing and not name.startswith("-"):
-            from .runner import close_matches
-
-            near = close_matches(name, self.list_commands(ctx))
-            if near:
-                ctx.fail(f"No such command {name!r}. Did you mean " + " or ".join(repr(n) for n in near) + "?")
-        return super().resolve_command(ctx, args)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name in _SUBCOMMANDS and cmd_name in self._available():

@@ -13,6 +13,7 @@ from typing import Any
 
 import click
 
+from .main import SuggestingGroup
 from .runner import EXIT_CONNECTION, NumberArgsCommand
 
 DEFAULT_SIM = "http://127.0.0.1:8080"
@@ -72,6 +73,8 @@ def call(sim: str, method: str, path: str, body: dict[str, Any] | None = None, p
 
 def _state_lines(s: dict[str, Any]) -> list[str]:
     part = f"{s['part']:g} mm" if s.get("part") is not None else "none"
+    if s.get("part_inside") is not None:
+        part += " (inside: a ring)" if s["part_inside"] else " (outside)"
     block = f"{s['blocked_at']:g} mm" if s.get("blocked_at") is not None else "none"
     return [
         f"state        {s['gripper_state']}{'  (FAST STOP)' if s.get('fast_stop') else ''}",
@@ -105,7 +108,7 @@ def _show(ctx: click.Context, reply: dict[str, Any]) -> None:
         click.echo("\n".join(_state_lines(reply)))
 
 
-@click.group("world")
+@click.group("world", cls=SuggestingGroup)
 @click.option("--sim", envvar="WSG_SIM", default=DEFAULT_SIM, show_default=True, metavar="URL",
               help="The sim's web address (wsg sim --web-port), or set WSG_SIM.")
 @click.option("--password", envvar="WSG_WEB_PASSWORD", default=None,
@@ -117,7 +120,8 @@ def world(ctx: click.Context, sim: str, password: str | None, as_json: bool) -> 
 
     \b
     Examples:
-      wsg world part 22            a 22 mm part between the fingers
+      wsg world part 22            a 22 mm part between the fingers (gripped from outside)
+      wsg world part 40 --inside   a 40 mm ring around the fingers (gripped from inside)
       wsg world part --remove      take it away (while HOLDING: part lost)
       wsg world block 30           a rigid obstacle at 30 mm; `wsg world unblock`
       wsg world fault power on     supply fault: FAST STOP until `... power off` and an ACK
@@ -156,11 +160,15 @@ def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None
 @world.command("part")
 @json_option
 @click.argument("width", type=float, required=False)
-@click.option("--stiffness", type=float, default=None, help="Part stiffness in N/mm (default: firm plastic).")
+@click.option("--stiffness", type=float, default=None,
+              help="Part stiffness in N/mm (default: rigid, a held part reads its own width).")
+@click.option("--inside/--outside", default=False, show_default=True,
+              help="Grip it from inside (a ring around the fingers, they open onto it) or from outside "
+                   "(between the fingers, they close onto it; the default).")
 @click.option("--remove", is_flag=True, help="Take the part away.")
 @click.pass_context
-def part(ctx: click.Context, width: float | None, stiffness: float | None, remove: bool) -> None:
-    """Put a part of WIDTH mm between the fingers (or --remove it)."""
+def part(ctx: click.Context, width: float | None, stiffness: float | None, inside: bool, remove: bool) -> None:
+    """Put a part of WIDTH mm between the fingers (--inside: a ring around them), or --remove it."""
     if remove:
         if width is not None:
             raise click.UsageError("give WIDTH or --remove, not both")
@@ -168,7 +176,7 @@ def part(ctx: click.Context, width: float | None, stiffness: float | None, remov
         return
     if width is None:
         raise click.UsageError("give the part's WIDTH in mm (or --remove)")
-    body: dict[str, Any] = {"width": width}
+    body: dict[str, Any] = {"width": width, "inside": inside}
     if stiffness is not None:
         body["stiffness"] = stiffness
     _run(ctx, "POST", "/part", body)

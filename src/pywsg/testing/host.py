@@ -85,9 +85,11 @@ class World:
         g = self._host.sim.grippers[self._index].gripper
         return self._host.call(lambda: apply(g, action, params))
 
-    def place_part(self, width: float, stiffness: float | None = None) -> str:
-        """Put a part of ``width`` mm between the fingers (``stiffness`` N/mm, default a firm plastic part)."""
-        return self._apply("part", width=width, stiffness=stiffness)
+    def place_part(self, width: float, stiffness: float | None = None, inside: bool = False) -> str:
+        """Put a part of ``width`` mm in the gripper: between the fingers, gripped from outside (the
+        default), or with ``inside=True`` a ring around them, gripped from inside. ``stiffness`` N/mm
+        (default rigid: a held part reads its own width)."""
+        return self._apply("part", width=width, stiffness=stiffness, inside=inside)
 
     def remove_part(self) -> str:
         """Take the part away (while HOLDING: the part is lost)."""

@@ -66,6 +66,17 @@ def _width(gripper: Any, params: Mapping[str, Any]) -> float:
     return width
 
 
+def _inside(params: Mapping[str, Any]) -> bool:
+    """``inside``: true grips the part from inside (a ring around the fingers), false (the default)
+    from outside (a part between the fingers), whatever the fingers' width when it is placed."""
+    value = params.get("inside", False)
+    if value is None:
+        return False
+    if isinstance(value, bool):
+        return value
+    raise WorldError("inside", f"must be true (gripped from inside) or false (from outside), not {_show(value)}")
+
+
 def _on(params: Mapping[str, Any]) -> bool:
     value = params.get("on", True)
     if isinstance(value, bool):
@@ -78,7 +89,8 @@ def _on(params: Mapping[str, Any]) -> bool:
 def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) -> str:
     """Carry out one world ``action`` on ``gripper``; returns what was done, in words.
 
-    ``action``/``params``: ``part`` (width, stiffness=None), ``remove_part``, ``block`` (width),
+    ``action``/``params``: ``part`` (width, stiffness=None, inside=False: gripped from outside unless
+    True), ``remove_part``, ``block`` (width),
     ``unblock``, ``fault`` (kind: power|current|finger|ack|watchdog|unplugged, on=True, finger=1|2
     for finger and unplugged, timeout=s for watchdog), ``heat`` (delta_c), ``slip`` (duration=s: the
     part slides out), ``disconnect`` (the gripper closes its connections), ``net`` (kind: a network fault of
@@ -91,14 +103,16 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     try:
         if action == "part":
             width = _width(gripper, p)
+            inside = _inside(p)
+            side = "inside, a ring gripped from inside" if inside else "outside, between the fingers"
             if p.get("stiffness") is None:
-                faults.place_part(width)
-                return f"part of {width:g} mm placed"
+                faults.place_part(width, inside=inside)
+                return f"part of {width:g} mm placed ({side})"
             stiffness = _number(p, "stiffness")
             if stiffness <= 0:
                 raise WorldError("stiffness", "must be positive (N/mm)")
-            faults.place_part(width, stiffness=stiffness)
-            return f"part of {width:g} mm ({stiffness:g} N/mm) placed"
+            faults.place_part(width, stiffness=stiffness, inside=inside)
+            return f"part of {width:g} mm ({stiffness:g} N/mm) placed ({side})"
         if action == "remove_part":
             faults.remove_part()
             return "part removed"
@@ -204,11 +218,18 @@ def world_state(gripper: Any) -> dict[str, Any]:
         "temperature": round(float(snap.temperature), 2),
         "fast_stop": bool(snap.fast_stop),
         "part": snap.part,
+        "part_inside": _part_inside(gripper),
         "blocked_at": snap.blocked_at,
         "faults": on,
         "net": _net_state(gripper),
         "statistics": list(snap.statistics),
     }
+
+
+def _part_inside(gripper: Any) -> bool | None:
+    """True for a ring gripped from inside, False for a part gripped from outside, None without a part."""
+    part = getattr(gripper, "obstacles", {}).get("part")
+    return None if part is None else part.blocks > 0
 
 
 def _net_state(gripper: Any) -> dict[str, Any]:

@@ -25,6 +25,7 @@ log = logging.getLogger(__name__)
 class PartBody(StrictBody):
     width: float = Field(gt=0, allow_inf_nan=False, description="part width, mm")
     stiffness: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="N/mm")
+    inside: bool = Field(default=False, description="gripped from inside (a ring); default from outside")
 
 
 class BlockBody(StrictBody):
@@ -71,9 +72,9 @@ def router(ctx: WebContext) -> APIRouter:
     async def place_part(body: PartBody) -> dict[str, Any]:
         motion_limits(ctx, body.width, None)
         if body.stiffness is None:
-            inject(faults().place_part, body.width)
+            inject(faults().place_part, body.width, inside=body.inside)
         else:
-            inject(faults().place_part, body.width, stiffness=body.stiffness)
+            inject(faults().place_part, body.width, stiffness=body.stiffness, inside=body.inside)
         return done(f"part of {body.width:g} mm placed")
 
     @r.delete("/part")

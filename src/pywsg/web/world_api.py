@@ -4,6 +4,7 @@
 
     GET    /api/world              state: gripper state, width, force, temperature, part, obstacle, faults
     POST   /api/world/part         {"width": 22.0, "stiffness": 500}   put a part between the fingers
+                                   {"width": 40.0, "inside": true}     a ring, gripped from inside
     DELETE /api/world/part                                              take it away
     POST   /api/world/block        {"width": 30.0}                      a rigid obstacle at 30 mm
     DELETE /api/world/block
@@ -14,8 +15,8 @@
     POST   /api/world/net          {"kind": "latency", "ms": 200, "jitter": 50, "on": true}
     DELETE /api/world/net                                               every network fault off
 
-Replies are JSON: ``{"ok": true, "action": "part of 22 mm placed", "state": {...}}``; a refused value
-gives 422 ``{"detail": ..., "errors": {"width": "must be within 0..110 mm ..."}}``.
+Replies are JSON: ``{"ok": true, "action": "part of 22 mm placed (outside, between the fingers)",
+"state": {...}}``; a refused value gives 422 ``{"detail": ..., "errors": {"width": "must be within 0..110 mm ..."}}``.
 
 Access. This API is for programs, not browsers, so it needs neither cookies nor CSRF tokens:
 

@@ -62,3 +62,13 @@ def test_gsdml_gives_profinet_py_the_real_configuration() -> None:
     got = {(s.slot, s.subslot): (s.module_ident, s.submodule_ident, s.input_length, s.output_length) for s in slots}
     want = {(s.slot, s.subslot): (s.module_ident, s.submodule_ident, s.input_length, s.output_length) for s in ar.REAL}
     assert got == want
+
+
+def test_gsdml_names_every_manufacturer_diagnosis_the_device_sends() -> None:
+    """002 §3.3's error flags as PROFINET channel diagnosis: the types below 0100h are the standard's,
+    the others need a ChannelDiagItem so the engineering tool can show a text."""
+    from pywsg.fieldbus.profinet.alarm import ERROR_TYPES
+
+    root = ET.parse(str(gsdml_path())).getroot()
+    declared = {int(i.get("ErrorType", "")) for i in root.findall(".//g:ChannelDiagItem", NS)}
+    assert {t for t in ERROR_TYPES.values() if t >= 0x100} == declared

@@ -85,6 +85,11 @@ def test_profinet_py_finds_reads_connects_and_runs_the_scl_cycle(wire: Wire, tmp
     done = wire.controller(argv=[*WSG, "plc-demo", "--url", url, "--cycles", "1", "--json"], timeout=90)
     assert done["event"] == "done" and done["ok"] is True, done
     assert done["cycles"] == 1 and done["holds"] == 1 and done["errors"] == 0, done
+    # 002 §3.3's diagnosis on PROFINET: FAST STOP raised, then acknowledged -> appears / disappears
+    diag = wire.controller("diag", STATION)
+    assert diag["state"] == "running", diag
+    assert diag["alarms"] == [{"type": 1, "slot": 1, "subslot": 1, "items": [[0x010C, 1]]},
+                              {"type": 1, "slot": 1, "subslot": 1, "items": [[0x010C, 2]]}], diag
     cap.stop()
     err = sim.stop()
     assert "Traceback" not in err
@@ -103,5 +108,7 @@ def test_profinet_py_finds_reads_connects_and_runs_the_scl_cycle(wire: Wire, tmp
     # the device's ApplicationReady (CControl to the controller) and the controller's Done
     assert count(proto="pn_io_controller", rpc_type="0", command="0x0002") >= 1
     assert count(proto="pn_io_controller", rpc_type="2", command="0x0008") >= 1
+    alarms = [f for f in frames if f["frame_id"] and int(f["frame_id"], 0) == 0xFE01]
+    assert len(alarms) >= 4   # DATA (alarm) and ACK both ways, decoded as PN-RTA without complaint
     rt = [f for f in frames if f["frame_id"] and 0xC000 <= int(f["frame_id"], 0) < 0xFC00]
     assert len(rt) > 50 and len({f["src"] for f in rt}) == 2   # cyclic RT frames both ways

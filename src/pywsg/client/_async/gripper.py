@@ -61,12 +61,16 @@ class AsyncGripper(AsyncCommands):
     ``timeout``: s to wait for an immediate reply; ``motion_timeout``: s to wait for a motion's
     final frame; ``reconnect``: True or a :class:`ReconnectPolicy` to reconnect automatically after
     a dropped connection (subscriptions are restored; a FAST STOP found is reported through
-    ``on_reconnect`` and the log, never acknowledged).
+    ``on_reconnect`` and the log, never acknowledged). ``on_reconnect(flags)`` is called with the
+    system flags found after every reconnection, ``on_connection_lost(exc)`` when the connection
+    drops; both may also be set as attributes later.
     """
 
     def __init__(self, url: str | Endpoint, *, timeout: float = DEFAULT_TIMEOUT,
                  motion_timeout: float = DEFAULT_MOTION_TIMEOUT, connect_timeout: float = 5.0,
-                 reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True) -> None:
+                 reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
+                 on_reconnect: Callable[[SystemFlag], None] | None = None,
+                 on_connection_lost: Callable[[BaseException | None], None] | None = None) -> None:
         self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
         self.timeout = timeout
         self.motion_timeout = motion_timeout
@@ -89,9 +93,9 @@ class AsyncGripper(AsyncCommands):
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = 0.0
         self._compact_at = _COMPACT_AT
-        self.on_reconnect: Callable[[SystemFlag], None] | None = None
+        self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
         """Called with the system flags found after every reconnection."""
-        self.on_connection_lost: Callable[[BaseException | None], None] | None = None
+        self.on_connection_lost: Callable[[BaseException | None], None] | None = on_connection_lost
         self.last_error: BaseException | None = None
 
     # ------------------------------------------------------------------ connection

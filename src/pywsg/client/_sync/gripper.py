@@ -65,12 +65,14 @@ class Gripper(Commands):
 
     Same methods and arguments as :class:`~pywsg.client.AsyncGripper`, without ``await``.
     ``connect=False`` defers opening the connection to ``connect()`` / ``with``.
+    ``on_reconnect(flags)`` and ``on_connection_lost(exc)``: as for ``AsyncGripper`` (also attributes).
     """
 
     def __init__(self, url: str | Endpoint, *, timeout: float = DEFAULT_TIMEOUT,
                  motion_timeout: float = DEFAULT_MOTION_TIMEOUT, connect_timeout: float = 5.0,
                  reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
-                 connect: bool = True) -> None:
+                 connect: bool = True, on_reconnect: Callable[[SystemFlag], None] | None = None,
+                 on_connection_lost: Callable[[BaseException | None], None] | None = None) -> None:
         self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
         self.timeout = timeout
         self.motion_timeout = motion_timeout
@@ -93,8 +95,8 @@ class Gripper(Commands):
         self._callbacks = Callbacks()
         self._closing = False
         self._opened_by = 0  # pid that connected it (lifetime)
-        self.on_reconnect: Callable[[SystemFlag], None] | None = None
-        self.on_connection_lost: Callable[[BaseException | None], None] | None = None
+        self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
+        self.on_connection_lost: Callable[[BaseException | None], None] | None = on_connection_lost
         self.last_error: BaseException | None = None
         if connect:
             self.connect()

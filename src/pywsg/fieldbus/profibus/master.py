@@ -73,11 +73,29 @@ class ProfibusUrl:
         return f"profibus://{self.port}?address={self.address}&baudrate={self.baudrate}"
 
 
+_pb_log = logging.getLogger("pywsg.fieldbus.profibus.pyprofibus")
+
+
+def _log_print(*args: Any, **kwargs: Any) -> None:
+    """pyprofibus reports with print() on stdout; that would break ``--json`` output: log it instead."""
+    text = " ".join(str(a) for a in args).strip()
+    if "ERROR" in text or "Warning" in text:
+        _pb_log.warning(text)
+    elif text:
+        _pb_log.debug(text)
+
+
 def _import_pyprofibus() -> Any:
     try:
         import pyprofibus
+        import pyprofibus.dp_master
+        import pyprofibus.phy
+        import pyprofibus.phy_serial
     except ImportError:
         raise ProfibusError(INSTALL_HINT) from None
+    # A module global named print shadows the builtin for that module's own calls only.
+    for module in (pyprofibus.phy, pyprofibus.phy_serial, pyprofibus.dp_master):
+        module.print = _log_print
     return pyprofibus
 
 
@@ -115,7 +133,7 @@ class ProfibusExchange:
             conf = pb.PbConf(io.StringIO(conf_text))
             master = conf.makeDPM()
         except pb.ProfibusError as exc:
-            raise ProfibusError(f"{u}: {str(exc).strip()}") from None
+            raise ProfibusError(f"{u}: {' '.join(str(exc).split())}") from None   # one line
         desc = conf.slaveConfs[0].makeDpSlaveDesc()
         master.addSlave(desc)
         master.initialize()

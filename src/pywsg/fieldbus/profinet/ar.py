@@ -168,7 +168,7 @@ class ConnectionManager:
         self.boot_time = int(time.time()) & 0xFFFFFFFF
         self.refused = 0   # Connect requests refused (for the Fieldbus Monitor)
         self._next_frame_id = 0xC100
-        self._alarm_ref = 0x0001
+        self.alarm_ref = 0x0001   # our LocalAlarmReference in every AlarmCRBlockRes
         # last replies by (activity, seqnum): a retransmitted request gets the same answer, not a second action
         self._replies: dict[tuple[uuid.UUID, int], bytes] = {}
 
@@ -278,7 +278,7 @@ class ConnectionManager:
         self.io_ar = ar
         reply = (b.ar_response(ar_req, self.station.mac)
                  + b.iocr_response(ar.input_cr, ar.input_frame_id) + b.iocr_response(ar.output_cr, ar.output_frame_id)
-                 + b.alarm_cr_response(alarm, self._alarm_ref, min(alarm.max_data_length, 200)) + ar.diff)
+                 + b.alarm_cr_response(alarm, self.alarm_ref, min(alarm.max_data_length, 200)) + ar.diff)
         log.info("PROFINET: AR from %s (%s, %s), cycle %g ms", src_ip, ar_req.station_name,
                  ":".join(f"{x:02x}" for x in ar_req.initiator_mac), ar.output_cr.cycle_s * 1000)
         self.listener.connected(ar)

@@ -28,6 +28,7 @@ from typing import Any
 
 from ..controller import FieldbusController
 from ..image import OutputImage
+from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
 from .ar import AR, ARState, ConnectionManager, Identity, Listener
 from .dcp import OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
@@ -77,6 +78,19 @@ def open_raw_socket(iface: str) -> socket.socket:
     return sock
 
 
+def interface_ipv4(iface: str) -> str | None:
+    """The interface's own (primary) IPv4 address, or None (SIOCGIFADDR)."""
+    import fcntl
+    import struct
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            res = fcntl.ioctl(s.fileno(), 0x8915, struct.pack("256s", iface.encode()[:15]))
+        except OSError:
+            return None
+    return socket.inet_ntoa(res[20:24])
+
+
 def _identity(gripper: Any) -> Identity:
     profile = getattr(gripper, "profile", None)
     name = str(getattr(profile, "name", "WSG 50"))
@@ -106,6 +120,7 @@ class ProfinetDevice:
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
         self.codec: CyclicCodec | None = None
+        self.alarms: AlarmChannel | None = None
         self.sock: socket.socket | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tick: asyncio.TimerHandle | None = None
@@ -121,6 +136,7 @@ class ProfinetDevice:
         self._last_frame_t = 0.0
         self._ar_start = 0.0
         self._seq = 0
+        self._diag_ready = False
         self._next = 0.0
         self._house: asyncio.TimerHandle | None = None
 
@@ -133,6 +149,7 @@ class ProfinetDevice:
         attach = getattr(self.controller, "attach_bus", None)
         if attach is not None:
             attach(self)
+        self._check_conflict()
         log.info("PROFINET: %s", self.line())
         return self
 
@@ -181,6 +198,8 @@ class ProfinetDevice:
         rows["Frames in / out"] = f"{self.frames_in} / {self.frames_out}"
         rows["Missed frames"] = str(self.missed)
         rows["Watchdog expiries"] = str(self.watchdog_expiries)
+        if self.alarms is not None and self.alarms.sent:
+            rows["Diagnosis alarms"] = f"{self.alarms.acked} acknowledged of {self.alarms.sent} sent"
         if self.last_abort:
             rows["Last AR end"] = self.last_abort
         if time.monotonic() < self._signal_until:
@@ -224,7 +243,12 @@ class ProfinetDevice:
                     else:
                         self._send(reply)
             elif self.codec is not None and frame.src == self.codec.ar.controller_mac:
-                self._output_frame(frame.payload)
+                if fid in (FID_ALARM_LOW, FID_ALARM_HIGH):
+                    if self.alarms is not None:
+                        for reply in self.alarms.handle(frame.payload[2:]):
+                            self._send(reply)
+                else:
+                    self._output_frame(frame.payload)
             return
         if frame.ethertype in (ETH_P_IP, 0x0806):
             replies, udp = self.ipstack.handle(frame)
@@ -291,6 +315,12 @@ class ProfinetDevice:
         self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
 
     # --- DCP Set ----------------------------------------------------------------------------------
+    def _check_conflict(self) -> None:
+        """The host answering for the station's IP on the same wire would confuse every controller."""
+        if self.ipstack.has_ip and interface_ipv4(self.iface) == self.station.ip.ip:
+            log.warning("PROFINET: %s is also the host's own address on %s: give the station an address of its "
+                        "own (the host answers ARP for it too)", self.station.ip.ip, self.iface)
+
     def _set_name(self, name: str, permanent: bool) -> int:
         if self.cm.io_ar is not None and name != self.station.name:
             log.warning("PROFINET: DCP Set NameOfStation refused: an AR is established")
@@ -307,6 +337,7 @@ class ProfinetDevice:
             return 6
         self.station.ip = suite
         self.ipstack.ip = suite.ip
+        self._check_conflict()
         if permanent:
             self.store.save(ip_address=suite.ip, netmask=suite.mask,
                             gateway="" if suite.gateway == NO_IP else suite.gateway)
@@ -341,6 +372,8 @@ class ProfinetDevice:
     # --- AR events ----------------------------------------------------------------------------------
     def _connected(self, ar: AR) -> None:
         self.codec = CyclicCodec(ar, self.station.mac)
+        self.alarms = AlarmChannel(ar, self.station.mac, self.cm.alarm_ref) if ar.alarm is not None else None
+        self._diag_ready = False
         self.ar_count += 1
         self._last_counter = None
         self._last_outputs = None
@@ -384,6 +417,7 @@ class ProfinetDevice:
     def _released(self, ar: AR, why: str) -> None:
         if self.codec is not None and ar is self.codec.ar:
             self.codec = None
+            self.alarms = None
             if self._tick is not None:
                 self._tick.cancel()
                 self._tick = None
@@ -432,12 +466,31 @@ class ProfinetDevice:
             inputs = bytes(12)
         self._send(codec.input_frame(inputs))
         self.frames_out += 1
+        if self.alarms is not None:
+            self._diagnosis(ar, inputs)
         cycle = codec.in_cr.cycle_s
         self._next += cycle
         t = loop.time()
         if self._next < t - cycle:   # fell behind (a long pause): restart the schedule, do not burst
             self._next = t + cycle
         self._tick = loop.call_at(self._next, self._cycle)
+
+    def _diagnosis(self, ar: AR, inputs: bytes) -> None:
+        """Diagnosis alarms for listed error flags rising or clearing (002 §3.3), once data exchange runs."""
+        alarms = self.alarms
+        assert alarms is not None
+        sysstate = int.from_bytes(inputs[2:6], "little")
+        if not self._diag_ready:
+            if ar.state != ARState.DATA:
+                return
+            self._diag_ready = True
+            # flags already set when data exchange starts are no news: the controller sees them in SYSSTATE
+            alarms.active = sysstate & DIAGNOSIS_FLAGS
+        alarms.flags(sysstate)
+        for frame in alarms.poll():
+            self._send(frame)
+        if alarms.failed:
+            self._abort(ar, "diagnosis alarm not acknowledged (alarm CR timeout)")
 
     def _housekeeping(self) -> None:
         """Once a second: end a device-access AR whose controller went quiet."""

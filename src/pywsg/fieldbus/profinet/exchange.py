@@ -113,7 +113,7 @@ class ProfinetExchange:
         except pn.DCPDeviceNotFoundError:
             raise FieldbusConnectionError(f"no PROFINET station {u.station!r} answers DCP on {u.iface}") from None
         try:
-            cyclic = device.start_cyclic(setup, start_alarm_listener=False)
+            cyclic = device.start_cyclic(setup)   # its alarm listener acknowledges diagnosis alarms
         except Exception as exc:
             device.close()
             raise FieldbusConnectionError(f"PROFINET connect to {u.station!r} failed: {exc}") from None
