@@ -6,8 +6,8 @@ default 2, the manual's demo PLC) and ``watchdog_ms`` (default 1000; 0 off).
 
 pyprofibus (GPL-2.0+) is the optional extra ``pywsg[profibus]``: it is imported only when an exchange
 is opened, and a clear error says how to install it. Its DPM1 runs in a thread of its own (its state
-machine is polled); :meth:`ProfibusExchange.read_inputs` waits for a Data_Exchange that carried the
-outputs written before it, so a write followed by a read is one bus cycle, as a PLC scan sees it.
+machine is polled); :meth:`ProfibusExchange.read_inputs` waits for the second Data_Exchange after
+the last write (the first may have been on the line with the old outputs), as a PLC scan sees it.
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ class ProfibusExchange:
             self._due = self._cycles + 2
 
     async def read_inputs(self, timeout: float = 1.0) -> bytes:
-        """The 12 input bytes of a Data_Exchange that carried the last written outputs."""
+        """The 12 input bytes of the second Data_Exchange after the last write (``timeout`` in s)."""
         deadline = time.monotonic() + timeout
         while True:
             with self._lock:
