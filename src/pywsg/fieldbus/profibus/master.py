@@ -133,7 +133,7 @@ class ProfibusExchange:
             conf = pb.PbConf(io.StringIO(conf_text))
             master = conf.makeDPM()
         except pb.ProfibusError as exc:
-            raise ProfibusError(f"{u}: {str(exc).strip()}") from None
+            raise ProfibusError(f"{u}: {' '.join(str(exc).split())}") from None   # one line
         desc = conf.slaveConfs[0].makeDpSlaveDesc()
         master.addSlave(desc)
         master.initialize()
