@@ -1,9 +1,134 @@
-"""Shared test configuration. Subsystems keep their fixtures in their own tests/<pkg>/conftest.py."""
+"""Shared test configuration. Subsystems keep their fixtures in their own tests/<pkg>/conftest.py.
+
+Rules every test follows (docs/testing.md "Writing tests for pywsg"): safe under pytest-xdist (port 0, unique
+names, no shared files), no absolute wall-time or CPU bounds, generous timeouts that say what they waited for,
+and every subprocess killed at teardown. This file enforces the last one for processes started in a test's
+body (see ``pytest_runtest_call``) and offers :func:`spawn` / :class:`Processes` for the rest.
+"""
 
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
+
+import psutil
+import pytest
+from hypothesis import settings
 
 ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
 SHARED = Path(os.environ.get("PYWSG_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+
+# Hypothesis: no deadline (a loaded machine is not a bug). "ci" (scripts/test.sh) draws the same examples every
+# run and keeps no example database, so a run never depends on what an earlier run found on this machine: a real
+# finding is fixed in the code, a test's own mistake in the test, and the input is pinned with @example.
+settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True)
+settings.register_profile("dev", deadline=None)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
+
+
+def kill_tree(proc: psutil.Process | subprocess.Popen[Any], grace: float = 5.0) -> None:
+    """SIGTERM ``proc`` and its children, SIGKILL what is still alive after ``grace`` seconds."""
+    try:
+        root = psutil.Process(proc.pid)
+        tree = [*root.children(recursive=True), root]
+    except psutil.NoSuchProcess:
+        tree = []
+    for p in tree:
+        try:
+            p.send_signal(signal.SIGTERM)
+        except psutil.NoSuchProcess:
+            pass
+    _gone, alive = psutil.wait_procs(tree, timeout=grace)
+    for p in alive:
+        try:
+            p.kill()
+        except psutil.NoSuchProcess:
+            pass
+    psutil.wait_procs(alive, timeout=grace)
+    if isinstance(proc, subprocess.Popen):
+        try:
+            proc.wait(grace)  # reap it, so no zombie and no ResourceWarning
+        except subprocess.TimeoutExpired:
+            pass
+        for stream in (proc.stdin, proc.stdout, proc.stderr):
+            if stream is not None:
+                try:
+                    stream.close()
+                except OSError:
+                    pass
+
+
+class Processes:
+    """Subprocesses owned by one fixture scope: :meth:`popen` starts one, :meth:`close` kills them all
+    (children too), whether the test passed or failed."""
+
+    def __init__(self) -> None:
+        self.procs: list[subprocess.Popen[Any]] = []
+
+    def popen(self, argv: list[str], **kw: Any) -> subprocess.Popen[Any]:
+        proc: subprocess.Popen[Any] = subprocess.Popen(argv, **kw)
+        self.procs.append(proc)
+        return proc
+
+    def close(self) -> None:
+        for proc in reversed(self.procs):
+            kill_tree(proc)
+        self.procs.clear()
+
+
+@pytest.fixture
+def spawn() -> Iterator[Callable[..., subprocess.Popen[Any]]]:
+    """``spawn(argv, **popen_kwargs)``: ``subprocess.Popen`` that is killed at this test's teardown."""
+    procs = Processes()
+    try:
+        yield procs.popen
+    finally:
+        procs.close()
+
+
+def _children() -> set[int]:
+    try:
+        return {p.pid for p in psutil.Process().children(recursive=False)}
+    except psutil.Error:
+        return set()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
+    """Safety net: a process the test's body started and left running (a failed assertion before its own
+    cleanup, a hung ``wsg``) is killed here, so it cannot hold a session or a port for the next test."""
+    before = _children()
+    try:
+        return (yield)
+    finally:
+        leaked = []
+        for pid in _children() - before:
+            try:
+                p = psutil.Process(pid)
+                if p.status() == psutil.STATUS_ZOMBIE:
+                    continue
+            except psutil.NoSuchProcess:
+                continue
+            leaked.append(f"{pid} {' '.join(p.cmdline())[:120]}")
+            kill_tree(p)
+        if leaked:
+            warnings.warn(f"{item.nodeid} left {len(leaked)} process(es) running, killed: {leaked}", stacklevel=1)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Under ``--dist loadgroup``, the tests that use a module-scoped fixture of a module (a ``wsg sim``
+    subprocess, a browser, a built wheel) run on one worker, so it is made once, not once per worker;
+    the other tests go to whichever worker is free. Runs before xdist reads the groups."""
+    for item in items:
+        if item.get_closest_marker("xdist_group"):
+            continue
+        info = getattr(item, "_fixtureinfo", None)
+        defs = info.name2fixturedefs.values() if info is not None else ()
+        if any(d and d[-1].scope in ("module", "package", "class") for d in defs):
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))

@@ -58,13 +58,13 @@ class PcapWriter:
 
     def tcp_open(self, client: tuple[str, int], server: tuple[str, int], ts: float) -> None:
         """A SYN from the client: ``wsg decode -f`` then knows which side is the gripper."""
-        self._seq[(*client, *server)] = 1001
-        self._seq[(*server, *client)] = 5001
+        self._seq[client + server] = 1001
+        self._seq[server + client] = 5001
         syn = dpkt.tcp.TCP(sport=client[1], dport=server[1], seq=1000, flags=dpkt.tcp.TH_SYN)
         self._write(self._ip(client, server, syn, dpkt.ip.IP_PROTO_TCP), ts)
 
     def tcp(self, src: tuple[str, int], dst: tuple[str, int], data: bytes, ts: float) -> None:
-        key = (*src, *dst)
+        key = src + dst
         seq = self._seq.get(key, 1)
         self._seq[key] = (seq + len(data)) % (1 << 32)
         seg = dpkt.tcp.TCP(sport=src[1], dport=dst[1], seq=seq, flags=dpkt.tcp.TH_ACK | dpkt.tcp.TH_PUSH,

@@ -31,7 +31,7 @@ device's command and state listeners).
 from __future__ import annotations
 
 import math
-import tomllib
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +39,11 @@ from typing import Any
 
 from ..protocol import CATALOG, GripperState
 from .world import ACTIONS, WorldError, apply
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, from PyPI
+    import tomli as tomllib
 
 __all__ = ["Event", "Scenario", "ScenarioError", "ScenarioRunner", "drive_realtime", "tap"]
 
