@@ -37,9 +37,9 @@ echo "== mypy (strict, Python 3.10)"
 # Hypothesis: the same examples every run, no example database (tests/conftest.py)
 export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
 # Workers: tests mostly wait (sockets, subprocesses, a browser), so one more than the cores keeps 2 cores busy.
-# --dist loadgroup keeps tests marked @pytest.mark.xdist_group("name") on one worker.
+# --dist loadfile: the tests of a module run on one worker, in order, sharing its module-scoped fixtures.
 WORKERS=${PYTEST_WORKERS:-$(( $(nproc) + 1 ))}
-XDIST=(-n "$WORKERS" --dist loadgroup)
+XDIST=(-n "$WORKERS" --dist loadfile)
 echo "== pytest ($WORKERS workers)"
 .venv/bin/python -m pytest -q "${XDIST[@]}" --durations=20 "$@"
 if [ $# -eq 0 ]; then

@@ -98,37 +98,56 @@ def _children() -> set[int]:
         return set()
 
 
+_CHILDREN_BEFORE = pytest.StashKey[set[int]]()
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
-    """Safety net: a process the test's body started and left running (a failed assertion before its own
-    cleanup, a hung ``wsg``) is killed here, so it cannot hold a session or a port for the next test."""
-    before = _children()
+    item.stash[_CHILDREN_BEFORE] = _children()  # after set-up: a module fixture's processes are not the test's
+    return (yield)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """Safety net: a process the test's body started that is still running after the test's own teardown
+    (a failed assertion before its cleanup, a hung ``wsg``) is killed here, so it cannot hold a session or a
+    port for the next test."""
     try:
         return (yield)
     finally:
+        before = item.stash.get(_CHILDREN_BEFORE, None)
         leaked = []
-        for pid in _children() - before:
+        for pid in _children() - before if before is not None else ():
             try:
                 p = psutil.Process(pid)
                 if p.status() == psutil.STATUS_ZOMBIE:
                     continue
+                cmd = " ".join(p.cmdline())[:120]
             except psutil.NoSuchProcess:
                 continue
-            leaked.append(f"{pid} {' '.join(p.cmdline())[:120]}")
+            leaked.append(f"{pid} {cmd}")
             kill_tree(p)
         if leaked:
             warnings.warn(f"{item.nodeid} left {len(leaked)} process(es) running, killed: {leaked}", stacklevel=1)
 
+# Modules that take longest (a browser, real-time demos, the docs' examples), started first so that no worker
+# begins one of them last (scripts/test.sh runs pytest-xdist with --dist loadfile: a module's tests run on one
+# worker, in order, sharing its module-scoped fixtures). Add a module here when --durations shows it long.
+SLOW_FIRST = (
+    "tests/web/test_browser_product.py",
+    "tests/test_docs_examples.py",
+    "tests/testing/test_scenario.py",
+    "tests/web/test_axe.py",
+    "tests/web/test_browser.py",
+    "tests/testing/test_world_cli.py",
+    "tests/testing/test_plugin.py",
+    "tests/testing/test_proxy_replay.py",
+    "tests/cli/test_commands.py",
+    "tests/test_packaging.py",
+)
 
-@pytest.hookimpl(tryfirst=True)
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Under ``--dist loadgroup``, the tests that use a module-scoped fixture of a module (a ``wsg sim``
-    subprocess, a browser, a built wheel) run on one worker, so it is made once, not once per worker;
-    the other tests go to whichever worker is free. Runs before xdist reads the groups."""
-    for item in items:
-        if item.get_closest_marker("xdist_group"):
-            continue
-        info = getattr(item, "_fixtureinfo", None)
-        defs = info.name2fixturedefs.values() if info is not None else ()
-        if any(d and d[-1].scope in ("module", "package", "class") for d in defs):
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+    """The modules of SLOW_FIRST first, in that order; all else as collected (a stable sort)."""
+    rank = {path: i for i, path in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::", 1)[0], len(rank)))
