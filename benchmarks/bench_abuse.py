@@ -544,6 +544,130 @@ def interfaces(only: list[str]) -> None:
             sim.close()
 
 
+class ProxyRun:
+    """``wsg proxy --to`` a sim's TCP port, printing text lines to a file, writing --jsonl and --pcap."""
+
+    def __init__(self, sim: Sim, tmp: str) -> None:
+        self.port = free_base(1)
+        self.text = os.path.join(tmp, "proxy.txt")
+        self.jsonl = os.path.join(tmp, "proxy.jsonl")
+        self.out = open(self.text, "w")  # noqa: SIM115 - closed in close()
+        self.proc = subprocess.Popen([*SIM[:-1], "proxy", "--listen", str(self.port), "--to",
+                                      f"tcp://127.0.0.1:{sim.tcp}", "--jsonl", self.jsonl, "--pcap",
+                                      os.path.join(tmp, "proxy.pcapng")],
+                                     stdout=self.out, stderr=subprocess.PIPE, text=True, env=SIM_ENV)
+        assert self.proc.stderr is not None
+        if not self.proc.stderr.readline().startswith("proxy "):
+            raise RuntimeError("wsg proxy did not start")
+        self.ps = psutil.Process(self.proc.pid)
+
+    def cpu(self) -> float:
+        t = self.ps.cpu_times()
+        return float(t.user + t.system)
+
+    def log_bytes(self) -> int:
+        return os.path.getsize(self.text) + os.path.getsize(self.jsonl)
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(30)
+        self.out.close()
+
+
+class TcpWaiter(Waiter):
+    """The other client through the proxy: TCP Loop requests back to back."""
+
+    def __init__(self, port: int) -> None:
+        threading.Thread.__init__(self, daemon=True)
+        self.sock = socket.create_connection(("127.0.0.1", port))
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock.settimeout(10)
+        self.waits = []
+        self.lost = 0
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        n = 0
+        parser = FrameParser()
+        while not self.stop.is_set():
+            n += 1
+            req = Frame(0x06, n.to_bytes(4, "little")).encode()
+            t0 = time.perf_counter()
+            self.sock.sendall(req)
+            try:
+                while not any(isinstance(e, Frame) for e in parser.feed(self.sock.recv(4096))):
+                    pass
+            except TimeoutError:
+                self.lost += 1
+                continue
+            self.waits.append(time.perf_counter() - t0)
+            time.sleep(0.0005)
+
+
+def _proxy_run(blob: bytes, with_waiter: bool) -> tuple[float, int, int, tuple[float, float, float]]:
+    """One fresh sim and proxy: send ``blob``; (proxy CPU s, peak RSS growth, log bytes, waits)."""
+    import tempfile
+
+    sim = Sim()
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            px = ProxyRun(sim, tmp)
+            try:
+                waiter = TcpWaiter(px.port) if with_waiter else None
+                if waiter is not None:
+                    waiter.start()
+                time.sleep(0.3)
+                cpu0, rss0 = px.cpu(), int(px.ps.memory_info().rss)
+                peak_reset(px.proc.pid)
+                s = socket.create_connection(("127.0.0.1", px.port))
+                # the waiter holds control when it runs: then 07h is answered E_ACCESS_DENIED
+                byes = (Frame.reply(0x07, Status.E_SUCCESS).encode(),
+                        Frame.reply(0x07, Status.E_ACCESS_DENIED).encode())
+                tail = bytearray()
+
+                def drain() -> None:
+                    while not tail.endswith(byes) and (data := s.recv(1 << 16)):
+                        tail[:] = tail[-64:] + data
+
+                reader = threading.Thread(target=drain, daemon=True)
+                reader.start()
+                s.sendall(blob)
+                s.sendall(b"\x00" * 2100 + Frame(0x07).encode())
+                reader.join(120)
+                s.close()
+                waits = waiter.finish() if waiter is not None else (0.0, 0.0, 0.0)
+                time.sleep(1.5)  # the proxy's decoding catches up
+                return px.cpu() - cpu0, peak(px.proc.pid) - rss0, px.log_bytes(), waits
+            finally:
+                px.close()
+    finally:
+        sim.close()
+
+
+def proxy_case(name: str, blob: bytes) -> None:
+    """``blob`` through `wsg proxy` (text log, --jsonl, --pcap) to a sim: the proxy's CPU, its log
+    bytes per byte sent and its peak RSS growth alone; then the wait of another client of the same
+    proxy while it runs."""
+    cpu, rss, logged, _ = _proxy_run(blob, False)
+    _, _, _, (p50, p99, worst) = _proxy_run(blob, True)
+    print(f"{name:44s} {cpu / (len(blob) / MIB):8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
+          f"{rss / 1e6:7.1f} {logged / len(blob):8.1f}x", flush=True)
+
+
+def proxy_cases(size: int, only: list[str]) -> None:
+    cases = [
+        ("proxy: random bytes (baseline)", os.urandom(size)),
+        ("proxy: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size)),
+        ("proxy: valid 50h requests", repeat(Frame(0x50).encode(), size)),
+        ("proxy: 70,000 zero bytes then 06h", b"\0" * 70_000 + Frame(0x06, b"x").encode()),
+    ]
+    print(f"{'proxy (text log, --jsonl, --pcap)':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} "
+          f"{'max ms':>7s} {'RSS MB':>7s} {'log/sent':>9s}")
+    for name, blob in cases:
+        if not only or any(o in name for o in only):
+            proxy_case(name, blob)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mib", type=float, default=1.0, help="bytes per attack, in MiB")
@@ -582,6 +706,7 @@ def main() -> None:
     if not only or any(o in "self-loop" for o in only):
         self_loop()
     interfaces(only)
+    proxy_cases(size, only)
 
 
 if __name__ == "__main__":

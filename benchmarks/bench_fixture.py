@@ -20,7 +20,7 @@ import socket
 import statistics
 import time
 
-from pywsg.cli.commlog import CommLog
+from pywsg.capture.commlog import CommLog
 from pywsg.protocol import CATALOG, Frame
 from pywsg.testing import LoopThread, SimThread
 from pywsg.testing.proxy import Proxy

@@ -18,7 +18,7 @@ import httpx
 import websockets
 
 from pywsg.device import VirtualGripper
-from pywsg.fieldbus.modbus import serve_modbus
+from pywsg.fieldbus.modbus.server import serve_modbus
 from pywsg.server import DeviceRunner
 from pywsg.web.app import serve_web
 from pywsg.web.fieldbus_view import fieldbus_view

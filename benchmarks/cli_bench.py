@@ -15,7 +15,7 @@ from pathlib import Path
 
 import dpkt
 
-from pywsg.cli.capture import frames_from_capture
+from pywsg.capture.reader import frames_from_capture
 from pywsg.cli.editor import parse_payload
 from pywsg.protocol import Frame, Status
 

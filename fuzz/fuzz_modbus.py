@@ -10,7 +10,7 @@ is the framing docs/fieldbus.md describes: every ADU is cut by its MBAP length; 
 length < 2 → no answer; length > 254 → the connection is closed, after every ADU before it is
 answered; every other ADU gets exactly one answer, in order, with its transaction id and
 unit id, whose function code is the request's (or ``| 80h`` with exception 01..04), and the
-exception :func:`pywsg.fieldbus.modbus.check_pdu` names when it names one. Then a fresh connection
+exception :func:`pywsg.fieldbus.modbus.server.check_pdu` names when it names one. Then a fresh connection
 must still read the input registers.
 """
 
@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import LoopThread, instrumented, main
 
 with instrumented(__name__):
-    from pywsg.fieldbus.modbus import MAX_MBAP_LENGTH, check_pdu
+    from pywsg.fieldbus.modbus.server import MAX_MBAP_LENGTH, check_pdu
     from pywsg.server import SimServer
 
 _MARKER_TID = 0xFFFF

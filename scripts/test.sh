@@ -34,6 +34,8 @@ echo "== ruff (target: Python 3.10)"
 .venv/bin/ruff check src tests benchmarks
 echo "== mypy (strict, Python 3.10)"
 .venv/bin/mypy
+echo "== import contracts (.importlinter)"
+.venv/bin/lint-imports --no-cache
 # Hypothesis: the same examples every run, no example database (tests/conftest.py)
 export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
 # Workers: tests mostly wait (sockets, subprocesses, a browser), so one more than the cores keeps 2 cores busy.

@@ -1,9 +1,9 @@
 """Generate the blocking driver's command methods from the asyncio ones (httpcore's unasync idea).
 
-    python scripts/unasync_client.py          # rewrite src/pywsg/client/sync_commands.py
+    python scripts/unasync_client.py          # rewrite src/pywsg/client/_sync/generated_commands.py
     python scripts/unasync_client.py --check  # exit 1 if it is out of date (the test suite runs this)
 
-Source: ``src/pywsg/client/aio_commands.py``. Edit that file, then run this script.
+Source: ``src/pywsg/client/_async/commands.py``. Edit that file, then run this script.
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ import sys
 from pathlib import Path
 
 CLIENT = Path(__file__).resolve().parents[1] / "src" / "pywsg" / "client"
-SOURCE = CLIENT / "aio_commands.py"
-TARGET = CLIENT / "sync_commands.py"
+SOURCE = CLIENT / "_async" / "commands.py"
+TARGET = CLIENT / "_sync" / "generated_commands.py"
 
-HEADER = '''"""GENERATED from ``aio_commands.py`` by ``scripts/unasync_client.py`` - do not edit; edit the source
-and run the script. The command methods of the blocking :class:`~pywsg.client.sync.Gripper`:
-:class:`Commands` (mixed into it) and :class:`Finger`.
+HEADER = '''"""GENERATED from ``pywsg/client/_async/commands.py`` by ``scripts/unasync_client.py`` - do not
+edit; edit the source and run the script. The command methods of the blocking
+:class:`~pywsg.client.Gripper`: :class:`Commands` (mixed into it) and :class:`Finger`.
 """
 '''
 
@@ -28,7 +28,6 @@ SUBS = [
     ("AsyncFinger", "Finger"),
     ("AsyncMotion", "Motion"),
     ("AsyncGripper", "Gripper"),
-    (".aio_handles", ".sync_handles"),
     ("async def ", "def "),
     ("await ", ""),
 ]

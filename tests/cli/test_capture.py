@@ -15,7 +15,7 @@ from pathlib import Path
 import dpkt
 import pytest
 
-from pywsg.cli.capture import bytes_from_file, frames_from_capture, read_hexdump
+from pywsg.capture.reader import bytes_from_file, frames_from_capture, read_hexdump
 from pywsg.protocol import Frame, Status
 
 from .conftest import run_wsg

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from pywsg import AsyncGripper, Gripper
-from pywsg.client.aio_commands import AsyncCommands, AsyncFinger
-from pywsg.client.sync_commands import Commands, Finger
+from pywsg.client._async.commands import AsyncCommands, AsyncFinger
+from pywsg.client._sync.generated_commands import Commands, Finger
 
 ROOT = Path(__file__).resolve().parents[2]
 

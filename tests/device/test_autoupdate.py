@@ -42,6 +42,7 @@ def test_change_only_sleeps_while_nothing_changes(homed: Rig) -> None:
 
 def test_change_only_keeps_the_period(homed: Rig) -> None:
     homed.call(0x43, flags=3, period_ms=200)
+    homed.status(0x30, acceleration=150.0)  # a slow ramp: the width changes for longer than 3 periods
     homed.status(0x21, flags=0, width=10.0, speed=400.0)
     times: list[float] = []
 

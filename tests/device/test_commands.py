@@ -239,11 +239,11 @@ def test_grip_part_too_big_for_clamping_travel_is_no_part(homed: Rig) -> None:
 def test_inside_grip_opens_onto_the_part(homed: Rig) -> None:
     homed.status(0x21, flags=0, width=10.0, speed=100.0)
     homed.run(5)
-    homed.g.faults.place_part(40.0)  # a ring around the fingers
+    homed.g.faults.place_part(40.0, inside=True)  # a ring around the fingers
     homed.status(0x25, width=40.0, speed=80.0)
     assert [f.status for f in homed.run(5)] == [S.E_SUCCESS]
     assert homed.gstate() == GripperState.HOLDING
-    assert homed.width() > 40.0  # squeezed outwards
+    assert homed.width() == pytest.approx(40.0)  # on the ring (a rigid part by default)
 
 
 # 3.2.7 Release
@@ -262,6 +262,8 @@ def test_release_statuses(homed: Rig) -> None:
 
 # 3.3 motion configuration
 def test_acceleration_set_get_clamped(rig: Rig) -> None:
+    assert rig.value(0x31)["acceleration"] == 5000.0  # the default (docs/fidelity.md)
+    assert rig.status(0x30, acceleration=150.0) == S.E_SUCCESS
     assert rig.value(0x31)["acceleration"] == 150.0
     assert rig.status(0x30, acceleration=1e6) == S.E_SUCCESS
     assert rig.value(0x31)["acceleration"] == 5000.0
@@ -272,7 +274,8 @@ def test_acceleration_set_get_clamped(rig: Rig) -> None:
 
 
 def test_get_acceleration_reply_bytes_match_manual_example(rig: Rig) -> None:
-    # manual 1.2.2 example 3: E_SUCCESS + 150.0 (00 00 16 43)
+    # manual 1.2.2 example 3: E_SUCCESS + 150.0 (00 00 16 43), once 150 mm/s² is set (30h)
+    assert rig.status(0x30, acceleration=150.0) == S.E_SUCCESS
     assert rig.call(0x31).payload == bytes.fromhex("0000 00001643")
 
 
@@ -349,7 +352,7 @@ def test_state_queries_need_flags_and_period(rig: Rig, cid: int) -> None:
 def test_statistics_and_reset(homed: Rig) -> None:
     homed.status(0x25, width=30.0, speed=100.0)
     homed.run(5)  # no part
-    homed.g.faults.place_part(50.0)
+    homed.g.faults.place_part(50.0, inside=True)
     homed.status(0x25, width=50.0, speed=100.0)  # fingers at 25 open onto a ring of 50 mm
     homed.run(5)
     assert homed.gstate() == GripperState.HOLDING

@@ -23,6 +23,7 @@ def test_jog_requires_reference_and_no_fast_stop(rig: Rig) -> None:
 
 
 def test_jog_moves_until_stopped(homed: Rig) -> None:
+    homed.status(0x30, acceleration=150.0)
     assert homed.g.jog(-1, 20.0, 30.0) == S.E_SUCCESS
     assert homed.gstate() == GripperState.POSITIONING
     homed.clock.advance(2.0)

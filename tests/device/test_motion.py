@@ -79,6 +79,7 @@ def test_speed_clamped_to_device_limit(homed: Rig) -> None:
 
 def test_widths_sampled_by_auto_update_match_profile(homed: Rig) -> None:
     homed.call(0x43, flags=1, period_ms=10)
+    homed.status(0x30, acceleration=150.0)
     t0 = homed.clock.now
     homed.status(0x21, flags=0, width=30.0, speed=80.0)
     stamps: list[tuple[float, float]] = []

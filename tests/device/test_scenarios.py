@@ -110,9 +110,9 @@ def test_cycle_part_removed_while_holding() -> None:
     assert w.wait(5) == [(0x25, S.E_SUCCESS)]
     r.g.faults.remove_part()
     assert w.state() == G.PART_LOST
-    assert w.flags() & SF.SF_MOVING  # the fingers run on through the clamping travel
+    assert not w.flags() & SF.SF_MOVING  # the drive stops where the part was (docs/fidelity.md)
     assert w.wait(5) == []
-    assert abs(r.g.width() - 35.0) < 1e-6
+    assert abs(r.g.width() - 40.0) < 1e-6
     assert w.state() == G.PART_LOST  # persists until the next grip/release/pre-position
     assert w.send(0x26, width=70.0, speed=50.0) == [(0x26, S.E_CMD_PENDING)]
     assert w.wait(5) == [(0x26, S.E_SUCCESS)]

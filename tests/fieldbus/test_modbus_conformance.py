@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pywsg.fieldbus.modbus import check_pdu
+from pywsg.fieldbus.modbus.server import check_pdu
 from pywsg.server import SimServer
 
 from .raw_modbus import adu, exchange, read_adus, registers

@@ -74,7 +74,7 @@ async def _fast_stop_while_gripping(sim: SimServer, recover: bool, timeout: floa
         if "step  6 ->  7" in text and not g.snapshot().fast_stop and not any("->  7" in t for t in lines[:-1]):
             g.raise_fast_stop("test: 23h while gripping")
 
-    result = await run_demo("127.0.0.1", sim.modbus_port or 0, 1, echo=echo, timeout=timeout,
+    result = await run_demo(f"modbus-tcp://127.0.0.1:{sim.modbus_port}", 1, echo=echo, timeout=timeout,
                             recover_fast_stop=recover)
     return result, lines
 
@@ -99,7 +99,7 @@ async def test_demo_with_recover_fast_stop_acknowledges_and_finishes(sim: SimSer
 
 async def test_demo_without_part_releases_at_once(sim: SimServer) -> None:
     lines: list[str] = []
-    result = await run_demo("127.0.0.1", sim.modbus_port or 0, 1, echo=lines.append, timeout=20)
+    result = await run_demo(f"modbus-tcp://127.0.0.1:{sim.modbus_port}", 1, echo=lines.append, timeout=20)
     assert result.completed and result.no_part == 1 and result.holds == 0
     assert any("[NO_PART, E_CMD_FAILED]" in line for line in lines)
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import itertools
 import os
 import time
 from typing import Any
@@ -139,19 +138,15 @@ async def sleeper_stamps(seconds: float) -> list[float]:
 
 
 def check_cadence(stamps: list[float], ref_stamps: list[float]) -> None:
-    """The 10 ms cadence holds at least as well as a sleep-per-packet loop's measured beside it: its mean
-    period drifts less (a sleep per packet adds each wakeup's lateness: ~5-12 % slow) and its median
-    interval error is not twice its. Both suffer a loaded machine alike, so no absolute bound is needed;
-    p99 <= 1 ms is the quiet-machine target in benchmarks/ (docs/benchmarks.md)."""
-    assert len(stamps) >= max(0.9 * len(ref_stamps), 10), (len(stamps), len(ref_stamps))
+    """The 10 ms cadence: never faster (no bursts after a stall: the device skips instead), and no slower
+    than 1.5 x the mean period of a sleep-per-packet loop measured beside it on the same loop (a loaded
+    machine starves both alike; a sim on the wrong period or stalling fails). How precise the intervals
+    are (p99 <= 1 ms on a quiet machine) is a benchmark figure (benchmarks/, docs/benchmarks.md), not a
+    test bound."""
+    assert len(stamps) >= 10, len(stamps)
     mean = (stamps[-1] - stamps[0]) / (len(stamps) - 1)
     ref_mean = (ref_stamps[-1] - ref_stamps[0]) / (len(ref_stamps) - 1)
-    assert abs(mean - 0.010) <= 0.75 * (ref_mean - 0.010), (mean, ref_mean)
-    gaps = sorted(abs(b - a - 0.010) for a, b in itertools.pairwise(stamps))
-    ref_gaps = sorted(abs(b - a - 0.010) for a, b in itertools.pairwise(ref_stamps))
-    # (the sim is usually far better; 2 x leaves room for noise between the two on a loaded machine)
-    median, ref_median = gaps[len(gaps) // 2], ref_gaps[len(ref_gaps) // 2]
-    assert median <= 2 * ref_median, (median, ref_median)
+    assert 0.0095 <= mean <= 1.5 * ref_mean, (mean, ref_mean)
 
 
 @pytest.mark.realtime

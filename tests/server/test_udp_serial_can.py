@@ -195,3 +195,28 @@ def test_can_virtual_bus_round_trip(sim_factory: Callable[..., SimThread]) -> No
     sg = st.sim.grippers[0]
     assert sg.can.address == f"can://{channel}?interface=virtual&request_id=0x1&reply_id=0x2"  # a client URL
     assert f"gripper 0: CAN      {sg.can.address} (inferred mapping)" in sg.lines()
+
+
+def test_can_fd_frames_on_the_request_id_are_ignored(sim_factory: Callable[..., SimThread]) -> None:
+    """Issue 23 item 16: the mapping is classic CAN (≤ 8 data bytes); a 64-byte CAN FD frame holding a
+    whole 50h request is not a request. The classic frames after it are answered as usual."""
+    can = pytest.importorskip("can")
+    channel = f"wsg-{uuid.uuid4().hex[:8]}"
+    st = sim_factory(tcp_port=None, udp_port=None, can_channel=channel)
+    bus = can.Bus(interface="virtual", channel=channel, fd=True)
+    try:
+        fd = Frame(0x50, b"").encode().ljust(64, b"\x00")
+        bus.send(can.Message(arbitration_id=0x01, data=fd, is_extended_id=False, is_fd=True))
+        raw = Frame(0x06, b"\x01\x02").encode()
+        for i in range(0, len(raw), 8):
+            bus.send(can.Message(arbitration_id=0x01, data=raw[i : i + 8], is_extended_id=False))
+        parser, seen = FrameParser(), []
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and 0x06 not in seen:
+            msg = bus.recv(0.5)
+            if msg is not None:
+                seen += [ev.command_id for ev in parser.feed(bytes(msg.data)) if isinstance(ev, Frame)]
+        assert seen == [0x06], seen  # no 50h reply before the 06h echo: the FD frame was not read
+    finally:
+        bus.shutdown()
+    assert st.sim.grippers[0].can.foreign == 1

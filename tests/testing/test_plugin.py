@@ -64,6 +64,15 @@ def test_settings_by_marker(wsg_sim):
         reply = s.recv(64)
     assert reply[3] == 0x43 and reply[6:8] == b"\\x00\\x00"  # E_SUCCESS (000 §1.4.1: CRC evaluation disabled)
 
+def test_a_ring_gripped_from_inside(wsg_sim):
+    wsg_sim.world.place_part(40.0, inside=True)  # issue 24 item 7: outside unless inside=True
+    with Gripper(wsg_sim.url) as g:
+        g.home()
+        g.move(10.0, speed=100)
+        g.grip(40.0, speed=100)
+        assert g.gripper_state() == GripperState.HOLDING
+    assert wsg_sim.world.state()["part_inside"] is True
+
 def test_faults_and_heat(wsg_sim):
     wsg_sim.world.fault("power", True)
     assert wsg_sim.world.state()["fast_stop"] is True
@@ -79,7 +88,7 @@ def test_user_suite_runs_with_the_installed_plugin(tmp_path: Path) -> None:
          "test_cell.py"], cwd=tmp_path, capture_output=True, text=True, timeout=180,
     )
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "10 passed" in r.stdout
+    assert "11 passed" in r.stdout
 
 
 def _first_python_block(page: Path) -> str:

@@ -110,7 +110,11 @@ def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     sim = sim_proc("--scenario", str(DOCS / "lost-part.toml"), modbus=True)
     r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "3", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert ", 1 error recovery" in r.stdout  # PART_LOST in cycle 3 sends the listing to its error path
+    # 002 App. D step 7 "No part found or part lost. Go to next step": the listing releases and goes on
+    # on its normal path (issue 24 item 2), no FAST STOP from a parameter change while the fingers move
+    assert "step  7 ->  8: release: wait for RELEASING, reset RELEASE  [PART_LOST, E_SUCCESS]" in r.stdout
+    done = r.stdout.strip().splitlines()[-1]
+    assert done == "done: 3 cycle(s), 3 part(s) held, 0 without part, 0 error recovery(ies)", done
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
 
 

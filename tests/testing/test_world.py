@@ -6,7 +6,7 @@ import pytest
 
 from pywsg.device import ManualClock, VirtualGripper
 from pywsg.protocol import CATALOG, Command, Frame, Status
-from pywsg.testing.world import WorldError, apply
+from pywsg.testing.world import WorldError, apply, world_state
 
 
 def _finger_flags(g: VirtualGripper, cid: Command) -> int:
@@ -26,3 +26,20 @@ def test_fingers_are_numbered_1_and_2_as_in_the_manual() -> None:
     assert g.fingers[1].fault and not g.fingers[0].fault
     with pytest.raises(WorldError, match="1 or 2"):
         apply(g, "fault", {"kind": "finger", "finger": 0})
+
+
+def test_parts_are_gripped_from_outside_unless_placed_inside() -> None:
+    """Issue 24 item 7 (000 §3.2.6: the grip's direction follows the part's side): ``part`` places a part
+    between the fingers (gripped from outside) whatever their width; ``inside: true`` a ring gripped from
+    inside. The state says which (``part_inside``); a non-boolean ``inside`` is refused, naming it."""
+    g = VirtualGripper("wsg50", clock=ManualClock())  # fingers at 55 mm, not referenced
+    assert apply(g, "part", {"width": 80.0}) == "part of 80 mm placed (outside, between the fingers)"
+    assert g.obstacles["part"].blocks == -1 and world_state(g)["part_inside"] is False
+    text = apply(g, "part", {"width": 20.0, "inside": True, "stiffness": 300})
+    assert text == "part of 20 mm (300 N/mm) placed (inside, a ring gripped from inside)"
+    assert g.obstacles["part"].blocks == 1 and world_state(g)["part_inside"] is True
+    apply(g, "remove_part")
+    assert world_state(g)["part_inside"] is None
+    with pytest.raises(WorldError, match="inside") as err:
+        apply(g, "part", {"width": 20.0, "inside": "yes"})
+    assert err.value.field == "inside"

@@ -27,6 +27,11 @@ def test_wsg_world_commands_change_a_running_sim(sim_proc: type[SimProc]) -> Non
     r = wsg("world", "--sim", sim.web, "part", "--remove")
     assert r.returncode == 0 and "part removed" in r.stdout
     assert "PART_LOST" in wsg("world", "--sim", sim.web, "state").stdout
+    r = wsg("world", "--sim", sim.web, "--json", "part", "40", "--inside")  # issue 24 item 7: a ring
+    assert r.returncode == 0 and json.loads(r.stdout)["state"]["part_inside"] is True, r.stderr
+    assert "inside" in json.loads(r.stdout)["action"]
+    r = wsg("world", "--sim", sim.web, "--json", "part", "22")  # the default: from outside
+    assert json.loads(r.stdout)["state"]["part_inside"] is False
     assert wsg("world", "--sim", sim.web, "block", "40").returncode == 0
     assert json.loads(wsg("world", "--sim", sim.web, "--json", "state").stdout)["blocked_at"] == 40.0
     assert wsg("world", "--sim", sim.web, "unblock").returncode == 0

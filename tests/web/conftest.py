@@ -24,7 +24,7 @@ import httpx
 import pytest
 
 from pywsg.device import Settings, VirtualGripper
-from pywsg.fieldbus.modbus import serve_modbus
+from pywsg.fieldbus.modbus.server import serve_modbus
 from pywsg.protocol import Frame
 from pywsg.server import DeviceRunner, TcpServer
 from pywsg.web.app import WebHandle, serve_web

@@ -148,13 +148,12 @@ def test_command_interface_page_stores_values_with_notes(sim: LiveSim, page: Any
     assert page.input_value("#if-profinet_name") == "wsg50-cell1"
     assert page.input_value("#if-ip_address") == "192.168.1.30"
     page.screenshot(path=str(ARTIFACTS / "command-interface.png"), full_page=True)
-    # the Fieldbus Monitor shows the stored station address and the bus state
+    # the Fieldbus Monitor shows the bus state: the rows the Modbus/TCP server gives (003 §6)
     page.goto(sim.url + "/diagnosis/fieldbus")
-    page.wait_for_function("document.getElementById('fb-station').textContent.startsWith('12 ')")
-    page.wait_for_function("document.getElementById('fb-state').dataset.state === 'waiting'")
-    assert "n/a" in page.inner_text("#fb-bitrate")
+    state = "document.querySelector(\"#fb-bus td[data-row='Interface state']\")"
+    page.wait_for_function(f"{state} && {state}.textContent.startsWith('Waiting')")
+    assert page.inner_text("#fb-bus td[data-row='Interface']") == f"Modbus/TCP (port {sim.modbus.port})"
     with ModbusTcpClient("127.0.0.1", port=sim.modbus.port) as mb:
         assert not mb.write_register(1, 0).isError()
-        page.wait_for_function("document.getElementById('fb-state').dataset.state === 'online'")
-        assert page.inner_text("#fb-state").startswith("Online: 1 master connected, last write")
-    page.wait_for_function("document.getElementById('fb-state').dataset.state === 'waiting'")
+        page.wait_for_function(f"{state}.textContent.startsWith('Online: 1 master connected, last write')")
+    page.wait_for_function(f"{state}.textContent.startsWith('Waiting')")

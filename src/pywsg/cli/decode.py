@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Collection, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from ..protocol.decode import DecodedFrame, Direction, decode_bytes, parse_hex
+
+if TYPE_CHECKING:
+    from ..capture.reader import CapturedFrame, LoggedFrame
 
 
 @click.command()
@@ -37,9 +43,7 @@ def decode(hexdata: tuple[str, ...], as_json: bool, direction: str | None, path:
     with units, the status name for replies, and whether the checksum is right (with the
     expected value when not). Exit status 1 when any frame is bad or truncated.
     """
-    if path is not None:  # file and capture input: pywsg.cli.capture (issue 5)
-        from .capture import decode_file
-
+    if path is not None:  # file and capture input, read by pywsg.capture.reader
         sys.exit(decode_file(path, ports, as_json, direction))  # type: ignore[arg-type]
     text = " ".join(hexdata) if hexdata else sys.stdin.read()
     try:
@@ -65,4 +69,53 @@ def emit(frames: list[DecodedFrame], as_json: bool) -> None:
         click.echo("\n".join(f.lines()))
 
 
-__all__ = ["Direction", "decode", "emit"]
+def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = False,
+                direction: Direction | None = None) -> int:
+    """Decode a capture, JSON-lines log, hex-dump or binary file and print it; returns the exit status
+    (1 when any frame is bad, truncated or the file cannot be read)."""
+    # imported here so that hex decoding never loads dpkt
+    from ..capture.reader import bytes_from_file, frames_from_capture, frames_from_jsonl, is_capture, is_jsonl
+
+    try:
+        if is_jsonl(path):
+            logged = frames_from_jsonl(path, direction)
+            _print_framed(logged, as_json, "no WSG frames in the log")
+            decoded = [f.decoded for f in logged]
+        elif is_capture(path):
+            captured = frames_from_capture(path, ports or None)
+            if direction is not None:
+                for c in captured:
+                    if c.decoded.command_id is not None and not c.decoded.error:
+                        c.decoded = decode_bytes(c.decoded.raw, direction)[0]
+            _print_framed(captured, as_json, "no WSG frames in the capture")
+            decoded = [c.decoded for c in captured]
+        else:
+            data = bytes_from_file(path)
+            if not data:
+                click.echo(f"error: {path}: no bytes", err=True)
+                return 1
+            decoded = decode_bytes(data, direction)
+            emit(decoded, as_json)
+    except BrokenPipeError:
+        raise  # the reader went away (`| head`): click leaves quietly
+    except (OSError, ValueError) as exc:
+        click.echo(f"error: {path}: {exc}", err=True)
+        return 1
+    return 1 if any(d.error or d.checksum_ok is False for d in decoded) else 0
+
+
+def _print_framed(frames: Sequence[LoggedFrame | CapturedFrame], as_json: bool, none: str) -> None:
+    """Print frames with a header line each (time, direction), or as one JSON list."""
+    if as_json:
+        click.echo(json.dumps([f.to_json() for f in frames], indent=2, ensure_ascii=False))
+        return
+    for i, f in enumerate(frames):
+        if i:
+            click.echo()
+        click.echo(f.header())
+        click.echo("\n".join(f.decoded.lines()))
+    if not frames:
+        click.echo(none, err=True)
+
+
+__all__ = ["Direction", "decode", "decode_file", "emit"]

@@ -12,7 +12,7 @@ from typing import Any
 import click
 
 from . import signals
-from .runner import Options, common_options, emit, fail, options
+from .runner import NumberArgsCommand, Options, common_options, emit, fail, options
 
 Action = Callable[[Any], Awaitable[Any]]
 
@@ -25,7 +25,7 @@ def _driver() -> Any:
 
     found = getattr(pywsg, "AsyncGripper", None)  # the public name (docs/architecture.md)
     if found is None:
-        from ..client.aio import AsyncGripper as found
+        from ..client import AsyncGripper as found
     return found
 
 
@@ -80,9 +80,6 @@ SPEED = click.option("--speed", type=click.FloatRange(min=0, min_open=True), def
                      help="Finger speed in mm/s, more than 0 (the gripper clamps it to its limits).")
 
 #: Widths may be negative (``wsg move --relative -5``): such an argument is a number, not an option.
-NUMBERS = {"ignore_unknown_options": True}
-
-
 def warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
@@ -164,7 +161,7 @@ def home(ctx: click.Context, /, direction: str, wait: bool, motion_timeout: floa
     _done(ctx, "home", run(ctx, kw, act, motion_timeout))
 
 
-@click.command(context_settings=NUMBERS)
+@click.command(cls=NumberArgsCommand)
 @click.argument("width", type=float)
 @SPEED
 @click.option("--relative", is_flag=True, help="WIDTH is a distance from the current width (mm, may be negative).")

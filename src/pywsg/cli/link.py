@@ -2,10 +2,10 @@
 
 ``wsg send`` must put the user's bytes on the wire exactly as composed (even payloads the driver
 would refuse), so it talks through this thin blocking link rather than the typed driver. Every
-frame sent and received goes to the :class:`~pywsg.cli.commlog.CommLog` when one is given.
+frame sent and received goes to the :class:`~pywsg.capture.commlog.CommLog` when one is given.
 Over TCP the link announces its disconnect (07h) before closing, so leaving does not raise a
 FAST STOP on the gripper (command manual 1.4.2, 3.1.2). Over CAN it uses the driver's CAN transport
-(:mod:`pywsg.client.can_transport`, the same fragmenting and acceptance filter).
+(:mod:`pywsg.client.can`, the same fragmenting and acceptance filter).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ from collections import deque
 from types import TracebackType
 from typing import Any
 
-from ..client.can_transport import CanSyncTransport
+from ..capture.commlog import CommLog
+from ..client._sync.can_transport import CanSyncTransport
 from ..client.url import Endpoint, parse_url
 from ..protocol import Command, Frame, FrameParser, Status
 from ..protocol.parser import ChecksumMismatch, Event, ParseError, parse_datagram
-from .commlog import CommLog
 
 __all__ = ["Link", "LinkError"]
 

@@ -23,8 +23,8 @@ from typing import Any, TextIO
 
 import click
 
+from ..capture.commlog import CommLog, entry_from_json
 from ..protocol import Command, Frame
-from .commlog import CommLog, entry_from_json
 from .editor import PayloadSyntaxError, build_packet
 from .runner import EXIT_CONNECTION, EXIT_USAGE, common_options, options
 

@@ -26,6 +26,7 @@ _SUBCOMMANDS: dict[str, str] = {
     "world": "pywsg.cli.world:world",
     "proxy": "pywsg.cli.proxy:proxy",
     "replay": "pywsg.cli.replay:replay",
+    "gsd": "pywsg.cli.gsd:gsd",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"
@@ -38,11 +39,44 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "State": ("state", "info", "width", "speed", "force", "gripper-state", "flags", "temp", "limits", "stats",
               "monitor"),
     "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
-    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "world", "proxy", "replay"),
+    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy", "replay"),
 }
 
 
-class LazyGroup(click.Group):
+# -- logging -----------------------------------------------------------------------------------
+
+def configure_logging(verbose: int) -> None:
+    """Log lines on stderr: warnings only as ``warning: text``; with -v (info) or -vv (debug) every
+    line with its time, level and logger, so an informational line never reads "warning:"."""
+    if verbose:
+        level = logging.INFO if verbose == 1 else logging.DEBUG
+        logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s", force=True)
+        logging.getLogger("pywsg").setLevel(level)
+        return
+    logging.basicConfig(level=logging.WARNING, format="warning: %(message)s", force=True)
+    # the driver's WARNING on a lost connection would repeat the error line the command prints
+    logging.getLogger("pywsg.client").setLevel(logging.ERROR)
+    # pymodbus logs transport failures (and its last frames) at ERROR/CRITICAL; our error line says it
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
+
+
+class SuggestingGroup(click.Group):
+    """A click group that answers a mistyped command name with the names it is close to."""
+
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple[str | None, click.Command | None,
+                                                                             list[str]]:
+        """click's lookup, plus "Did you mean 'move'?" for a mistyped command name (difflib)."""
+        name = click.utils.make_str(args[0])
+        if self.get_command(ctx, name) is None and not ctx.resilient_parsing and not name.startswith("-"):
+            from .runner import close_matches
+
+            near = close_matches(name, self.list_commands(ctx))
+            if near:
+                ctx.fail(f"No such command {name!r}. Did you mean " + " or ".join(repr(n) for n in near) + "?")
+        return super().resolve_command(ctx, args)
+
+
+class LazyGroup(SuggestingGroup):
     """A click group that imports each subcommand's module on first use."""
 
     def _commander(self) -> dict[str, click.Command]:
@@ -114,15 +148,7 @@ def cli(ctx: click.Context, url: str, verbose: int, log_flag: bool, log_file: st
 
     Units everywhere: widths in mm, speeds in mm/s, accelerations in mm/s², forces in N.
     """
-    level = logging.WARNING - 10 * min(verbose, 2)
-    if verbose:
-        logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    else:
-        logging.basicConfig(level=level, format="warning: %(message)s")
-        # the driver's WARNING on a lost connection would repeat the error line the command prints
-        logging.getLogger("pywsg.client").setLevel(logging.ERROR)
-        # pymodbus logs transport failures (and its last frames) at ERROR/CRITICAL; our error line says it
-        logging.getLogger("pymodbus").setLevel(logging.CRITICAL + 1)
+    configure_logging(min(verbose, 2))
     ctx.ensure_object(dict)
     ctx.obj["url"] = url
     ctx.obj["verbose"] = verbose

@@ -1,7 +1,8 @@
 """``wsg plc-demo``: the fieldbus manual's SCL gripping cycle (002 Appendix D) as a Python soft PLC.
 
-Connects to a gripper's Modbus/TCP fieldbus interface (a real WSG on port 502, or
-``wsg sim --modbus-port N``) and runs :class:`pywsg.fieldbus.plc.GrippingCycle` once per scan,
+Connects to a gripper's fieldbus interface over any bus (``--url``: Modbus/TCP to a real WSG on
+port 502 or ``wsg sim --modbus-port N``; PROFINET; PROFIBUS) and runs
+:class:`pywsg.fieldbus.plc.GrippingCycle` once per scan,
 printing every step: homing, pre-position, grip, hold 1 s, release, back to start; on an error
 (gripper state ERROR, or a refused command) STOP/ACK and homing again, as the listing does.
 """
@@ -20,8 +21,9 @@ from typing import Any
 
 import click
 
+from ..fieldbus.exchange import SCHEMES, URL_FORMS, FieldbusConnectionError, scheme_of
 from ..fieldbus.image import CmdFlag, OutputImage
-from ..fieldbus.plc import AsyncFieldbusGripper, FieldbusConnectionError, GrippingCycle
+from ..fieldbus.plc import AsyncFieldbusGripper, GrippingCycle
 from ..protocol import GState
 from .runner import EXIT_CONNECTION
 
@@ -38,16 +40,17 @@ class DemoResult:
     completed: bool
 
 
-async def run_demo(host: str, port: int, cycles: int = 3, *, scan: float = 0.002, timeout: float = 60.0,
+async def run_demo(url: str, cycles: int = 3, *, scan: float = 0.002, timeout: float = 60.0,
                    fast_stop_cycle: int | None = None, model: str = "wsg50",
                    echo: Callable[[str], None] = print, recover_fast_stop: bool = False) -> DemoResult:
-    """Run the gripping cycle until ``cycles`` cycles are done (or ``timeout`` s pass).
+    """Run the gripping cycle over the bus ``url`` names until ``cycles`` cycles are done (or
+    ``timeout`` s pass).
 
     ``fast_stop_cycle``: in that cycle (1-based) raise FASTSTOP for one scan while the fingers move,
     to show the listing's error path (STOP/ACK, homing, restart). ``recover_fast_stop``: see
     :class:`GrippingCycle` (off: the listing exactly).
     """
-    plc = await AsyncFieldbusGripper.open(host, port, model=model)
+    plc = await AsyncFieldbusGripper.open_url(url, model=model)
     cyc = GrippingCycle(log=echo, recover_fast_stop=recover_fast_stop)
     inputs = None
     injected = 0
@@ -84,8 +87,8 @@ async def run_demo(host: str, port: int, cycles: int = 3, *, scan: float = 0.002
 
 
 @contextlib.asynccontextmanager
-async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[int]:
-    """An in-process virtual gripper with Modbus/TCP on a free port; yields the port."""
+async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[str]:
+    """An in-process virtual gripper with Modbus/TCP on a free port; yields its URL."""
     from ..server import SimServer
 
     async with SimServer(model=model, tcp_port=None, udp_port=None, modbus_port=0) as sim:
@@ -93,40 +96,45 @@ async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[int]
         if part_width is not None:
             gripper.faults.place_part(part_width)
         assert sim.modbus_port is not None
-        yield sim.modbus_port
+        yield f"modbus-tcp://127.0.0.1:{sim.modbus_port}"
 
 
 def _connection_message(exc: OSError, where: str) -> str:
-    """One line for a failed or lost Modbus/TCP connection, with a hint where none is given yet."""
-    text = str(exc) if isinstance(exc, FieldbusConnectionError) else f"no Modbus/TCP connection to {where}: {exc}"
-    if "(is " in text:   # already says what to check
+    """One line for a failed or lost bus connection, with a hint where none is given yet."""
+    text = str(exc) if isinstance(exc, FieldbusConnectionError) else f"no connection to {where}: {exc}"
+    if "(is " in text or "pip install" in text or "has no" in text:   # already says what to do
         return text
-    return f"{text} (is the gripper, or `wsg sim --modbus-port N`, running?)"
+    if where.startswith("modbus"):
+        return f"{text} (is the gripper, or `wsg sim --modbus-port N`, running?)"
+    return f"{text} (is the gripper running and its bus enabled?)"
 
 
 MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
 DEFAULT_URL = "modbus-tcp://127.0.0.1:502"
 
 
-def parse_modbus_url(url: str) -> tuple[str, int]:
-    """``modbus-tcp://HOST[:PORT]`` (port 502 by default; ``tcp://`` and a bare ``HOST[:PORT]`` too)."""
-    from urllib.parse import urlsplit
-
-    text = url if "://" in url else f"modbus-tcp://{url}"
-    parts = urlsplit(text)
-    if parts.scheme not in ("modbus-tcp", "modbus", "tcp") or not parts.hostname:
-        raise click.BadParameter(f"{url!r}: expected modbus-tcp://HOST[:PORT], e.g. modbus-tcp://127.0.0.1:5020",
-                                 param_hint="--url")
+def check_url(url: str) -> str:
+    """The bus URL, checked as far as it can be without opening it (a bare ``HOST[:PORT]`` is
+    Modbus/TCP); click.BadParameter says what is wrong."""
     try:
-        port = parts.port or 502
-    except ValueError:
-        raise click.BadParameter(f"{url!r}: bad port", param_hint="--url") from None
-    return parts.hostname, port
+        scheme = scheme_of(url)
+        if SCHEMES[scheme] == "modbus":
+            from ..fieldbus.modbus.exchange import parse_url
+
+            host, port = parse_url(url)
+            return f"modbus-tcp://{host}:{port}"
+        if SCHEMES[scheme] == "profinet":
+            from ..fieldbus.profinet.exchange import ProfinetUrl
+
+            ProfinetUrl.parse(url)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--url") from None
+    return url
 
 
 @click.command("plc-demo")
 @click.option("--url", default=None, metavar="URL",
-              help=f"The gripper's Modbus/TCP interface: modbus-tcp://HOST[:PORT] (default {DEFAULT_URL}; "
+              help=f"The gripper's fieldbus interface: {URL_FORMS} (default {DEFAULT_URL}; "
               "`wsg sim --modbus-port 5020` prints modbus-tcp://127.0.0.1:5020).")
 @click.option("--host", default=None, hidden=True, help="Deprecated: use --url modbus-tcp://HOST:PORT.")
 @click.option("--port", default=None, type=click.IntRange(1, 65535), hidden=True,
@@ -155,7 +163,7 @@ def parse_modbus_url(url: str) -> tuple[str, int]:
 def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | None, cycles: int, model: str,
              scan: float, timeout: float, fast_stop_cycle: int | None, recover_fast_stop: bool, local_sim: bool,
              part_width: float, no_part: bool, as_json: bool) -> None:
-    """Run the fieldbus manual's gripping-cycle demo (002 Appendix D, SCL) over Modbus/TCP.
+    """Run the fieldbus manual's gripping-cycle demo (002 Appendix D, SCL) over a fieldbus.
 
     Homing, pre-position to 30 mm, grip at 22 mm with 50 N, hold 1 s, release to 30 mm, back to
     60 mm, and again; on an error STOP/ACK and homing.
@@ -164,7 +172,8 @@ def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | 
     Start a gripper first, then run the demo against its Modbus/TCP port:
       wsg sim --modbus-port 5020
       wsg plc-demo --url modbus-tcp://127.0.0.1:5020
-    or use --sim for an in-process virtual gripper.
+    or use --sim for an in-process virtual gripper. PROFINET and PROFIBUS masters take
+    --url profinet://IFACE/STATION and --url profibus://PORT?address=N&baudrate=B.
 
     Exit status: 0 all cycles done, 1 timed out, 2 usage error, 3 no connection.
     """
@@ -177,29 +186,29 @@ def plc_demo(ctx: click.Context, url: str | None, host: str | None, port: int | 
             raise click.UsageError("give --url, or the deprecated --host/--port, not both")
         click.echo("warning: --host/--port are deprecated; use --url modbus-tcp://HOST:PORT", err=True)
         url = f"modbus-tcp://{host or '127.0.0.1'}:{port or 502}"
-    target_host, target_port = parse_modbus_url(url or DEFAULT_URL)
+    target = check_url(url or DEFAULT_URL)
 
     def echo(text: str) -> None:
         click.echo(json.dumps({"event": "step", "text": text}, ensure_ascii=False) if as_json else text)
 
     async def main() -> DemoResult:
         if local_sim:
-            async with _local_sim(model, None if no_part else part_width) as sim_port:
+            async with _local_sim(model, None if no_part else part_width) as sim_url:
                 if as_json:
-                    click.echo(json.dumps({"event": "started", "url": f"modbus-tcp://127.0.0.1:{sim_port}"}))
+                    click.echo(json.dumps({"event": "started", "url": sim_url}))
                 else:
-                    click.echo(f"in-process virtual {model} with Modbus/TCP on 127.0.0.1:{sim_port}")
-                return await run_demo("127.0.0.1", sim_port, cycles, scan=scan / 1000, timeout=timeout,
+                    click.echo(f"in-process virtual {model} with Modbus/TCP on {sim_url.removeprefix('modbus-tcp://')}")
+                return await run_demo(sim_url, cycles, scan=scan / 1000, timeout=timeout,
                                       fast_stop_cycle=fast_stop_cycle, model=model, echo=echo,
                                       recover_fast_stop=recover_fast_stop)
-        return await run_demo(target_host, target_port, cycles, scan=scan / 1000, timeout=timeout,
+        return await run_demo(target, cycles, scan=scan / 1000, timeout=timeout,
                               fast_stop_cycle=fast_stop_cycle, model=model, echo=echo,
                               recover_fast_stop=recover_fast_stop)
 
     try:
         result = asyncio.run(main())
     except (ConnectionError, OSError) as exc:
-        where = "the in-process virtual gripper" if local_sim else f"modbus-tcp://{target_host}:{target_port}"
+        where = "the in-process virtual gripper" if local_sim else target
         message = _connection_message(exc, where)
         if as_json:
             click.echo(json.dumps({"event": "error", "ok": False, "error": message}))

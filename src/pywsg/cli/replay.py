@@ -11,14 +11,19 @@ import click
 
 @click.command("replay")
 @click.argument("recording", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--to", "url", required=True, metavar="URL", help="The gripper: tcp://HOST[:1000] or udp://HOST[:1500].")
+@click.option("--to", "url", default=None, metavar="URL", help="The gripper: tcp://HOST[:1000] or udp://HOST[:1500].")
+@click.option("--sim", "sim_model", default=None, metavar="MODEL",
+              type=click.Choice(["wsg50", "wsg32", "wsg25", "wsg70"]),
+              help="Instead of --to: a fresh virtual gripper of MODEL in this process, on a manual clock "
+                   "(a motion's final reply comes at once): the CI one-liner.")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Largest accepted difference of a measured value, in its unit (mm, mm/s, N, °C).")
 @click.option("--timeout", type=float, default=10.0, show_default=True,
               help="Longest wait for one request's replies (s), a motion's final reply included.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.pass_context
-def replay(ctx: click.Context, recording: Path, url: str, tolerance: float, timeout: float, as_json: bool) -> None:
+def replay(ctx: click.Context, recording: Path, url: str | None, sim_model: str | None, tolerance: float,
+           timeout: float, as_json: bool) -> None:
     """Replay the client side of RECORDING against a gripper and compare the replies.
 
     RECORDING: a pcap/pcapng capture (wsg proxy --pcap, Wireshark) or JSON lines (wsg proxy --jsonl,
@@ -29,12 +34,22 @@ def replay(ctx: click.Context, recording: Path, url: str, tolerance: float, time
     Example: compare a real gripper's answers with the virtual one's
       wsg proxy --listen 2000 --to tcp://192.168.1.20:1000 --pcap real.pcapng   # record a session
       wsg replay real.pcapng --to tcp://127.0.0.1:1000                          # against wsg sim
+      wsg replay real.pcapng --sim wsg50                                        # in CI, no sim to start
     """
     from ..testing.replay import replay as run
 
     as_json = as_json or (isinstance(ctx.obj, dict) and bool(ctx.obj.get("json")))
+    if (url is None) == (sim_model is None):
+        raise click.UsageError("give the gripper: --to URL or --sim MODEL (one of them)")
     try:
-        report = run(recording, url, tolerance, timeout)
+        if sim_model is not None:
+            from ..testing.host import SimThread
+
+            with SimThread(model=sim_model, clock="manual", udp_port=None) as sim:
+                report = sim.replay(recording, tolerance, timeout)
+        else:
+            assert url is not None
+            report = run(recording, url, tolerance, timeout)
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
     except OSError as exc:

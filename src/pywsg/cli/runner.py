@@ -8,18 +8,19 @@ timeout, corrupted reply).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import enum
 import json
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 import click
 
+from ..capture.commlog import CommLog
 from ..errors import HINT_ACKNOWLEDGE, HINT_HOME
 from ..protocol import Status, StatusError
-from .commlog import CommLog
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -191,6 +192,43 @@ def fail(exc: BaseException, as_json: bool = False, url: str = "") -> NoReturn:
     sys.exit(code)
 
 
+# -- typos -------------------------------------------------------------------------------------
+
+def close_matches(word: str, choices: Iterable[str]) -> list[str]:
+    """The choices that ``word`` is probably a typo of (difflib), best first."""
+    return difflib.get_close_matches(word, list(choices), n=3, cutoff=0.6)
+
+
+class NumberArgsCommand(click.Command):
+    """A command whose arguments may be negative numbers (``wsg move -5 --relative``).
+
+    click's ``ignore_unknown_options`` lets ``-5`` through as an argument, but it would let a
+    mistyped ``--sped 50`` through too ("unexpected extra arguments"): here a word that starts with
+    ``-``, is no number and names no option is refused as click refuses one, with a suggestion.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        settings = dict(kwargs.pop("context_settings", None) or {})
+        settings["ignore_unknown_options"] = True
+        kwargs["context_settings"] = settings
+        super().__init__(*args, **kwargs)
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        known = {name for p in self.get_params(ctx) if isinstance(p, click.Option)
+                 for name in (*p.opts, *p.secondary_opts)}
+        for word in args:
+            if word == "--":
+                break
+            name = word.split("=", 1)[0]
+            if not name.startswith("-") or name in known:
+                continue
+            try:
+                float(name)
+            except ValueError:
+                raise click.NoSuchOption(name, possibilities=close_matches(name, known), ctx=ctx) from None
+        return super().parse_args(ctx, args)
+
+
 # -- ports -------------------------------------------------------------------------------------
 
 class PortType(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
@@ -232,8 +270,17 @@ class Options:
     timeout: float
 
 
+def _remember_url(ctx: click.Context, param: click.Parameter, value: str | None) -> None:
+    if value is not None:
+        ctx.meta["pywsg.url"] = value
+
+
 def common_options(f: F) -> F:
-    """``--json``, ``--log``, ``--log-file``, ``--timeout`` (in that order in --help)."""
+    """``--url``, ``--json``, ``--log``, ``--log-file``, ``--timeout`` (in that order in --help).
+
+    ``--url`` is also an option of ``wsg`` itself: ``wsg --url U monitor`` and ``wsg monitor --url U``
+    mean the same, like ``--json`` and ``--log``; the subcommand's wins when both are given.
+    """
     f = click.option("--timeout", type=click.FloatRange(min=0.01), default=5.0, show_default=True, metavar="SECONDS",
                      help="Seconds to wait for each reply from the gripper.")(f)
     f = click.option("--log-file", type=click.Path(dir_okay=False, writable=True), metavar="PATH",
@@ -241,6 +288,9 @@ def common_options(f: F) -> F:
     f = click.option("--log", "log_flag", is_flag=True,
                      help="Print the communication log (time, TX/RX, hex, decoded frame) on stderr.")(f)
     f = click.option("--json", "as_json", is_flag=True, help="Machine-readable output (one JSON object).")(f)
+    f = click.option("--url", metavar="URL", default=None, expose_value=False, callback=_remember_url,
+                     allow_from_autoenv=False,
+                     help="Gripper address, as `wsg --url` (default: the one given to wsg, or WSG_URL).")(f)
     return f
 
 
@@ -257,7 +307,7 @@ def options(ctx: click.Context, as_json: bool, log_flag: bool, log_file: str | N
             jsonl = Path(log_file).open("a", encoding="utf-8")  # noqa: SIM115 - closed at exit
             ctx.call_on_close(jsonl.close)
         log = CommLog(text=sys.stderr if log_flag else None, jsonl=jsonl)
-    url = root.get("url") or "tcp://127.0.0.1:1000"
+    url = ctx.meta.get("pywsg.url") or root.get("url") or "tcp://127.0.0.1:1000"
     return Options(url, as_json, log, timeout)
 
 

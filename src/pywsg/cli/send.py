@@ -9,9 +9,9 @@ from typing import Any
 import click
 from click.shell_completion import CompletionItem
 
+from ..capture.commlog import summary
 from ..protocol import CATALOG, Frame, Status
 from ..protocol.decode import decode_frame
-from .commlog import summary
 from .editor import PayloadSyntaxError, build_packet
 from .runner import EXIT_CONNECTION, EXIT_STATUS, EXIT_USAGE, common_options, options
 

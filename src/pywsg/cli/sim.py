@@ -1,10 +1,9 @@
-"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP and the web."""
+"""``wsg sim``: serve virtual grippers on TCP, UDP, serial (pty), CAN, Modbus/TCP, PROFIBUS DP and the web."""
 
 from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import re
 from pathlib import Path
 from typing import Any
@@ -39,6 +38,15 @@ MODELS = ("wsg50", "wsg32", "wsg25", "wsg70")
 
 def _serial(value: str) -> str | None:
     return None if value.lower() in ("0", "off", "none", "") else value
+
+
+def _scaled_clock(k: float) -> Any:
+    """A :class:`~pywsg.device.ScaledClock` for ``--time-scale K`` (None: real time)."""
+    if k == 1:
+        return None
+    from ..device.clock import ScaledClock
+
+    return ScaledClock(k)
 
 
 def _run(coro: Any, use_uvloop: bool | None) -> Any:
@@ -92,6 +100,20 @@ def _json_line(line: str) -> str:
               help="CAN bit rate for a hardware interface (ignored by the virtual bus).")
 @click.option("--modbus-port", type=PORT, default="off", show_default=True,
               help="Modbus/TCP fieldbus interface (0: any free port; the standard 502 needs root).")
+@click.option("--profinet", "profinet_iface", default=None, metavar="IFACE",
+              help="PROFINET IO device on this network interface (a spare NIC to a PLC, or a veth/bridge to a "
+              "soft PLC; needs root or CAP_NET_RAW; see docs/fieldbus.md). The host's addresses are not changed.")
+@click.option("--profinet-name", default=None, metavar="NAME",
+              help="PROFINET NameOfStation (default: the stored one; else unnamed until a controller sets it by DCP).")
+@click.option("--profinet-ip", default=None, metavar="IP/PREFIX[,GATEWAY]",
+              help="PROFINET IP suite, e.g. 192.168.0.20/24 (default: the stored one; else none until set by DCP).")
+@click.option("--profibus", "profibus_line", default="off", show_default=True, metavar="pty|PATH|off",
+              help="PROFIBUS DP slave (Ident 5555h, WEIS5555.gsd): a new pseudo-terminal for a master on this "
+              "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
+@click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
+              help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
+@click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450); nominal on a pty.")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
@@ -101,10 +123,20 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
+@click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
+              help="Close a Modbus/TCP or web connection after this many seconds without data either way "
+                   "(0: never). A polling master is never idle.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
+@click.option("--time-scale", "time_scale", type=click.FloatRange(min=0, min_open=True, max=1e6), default=1.0,
+              show_default=True, metavar="K",
+              help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
+              "periods and scenarios (the network and clients' timeouts are not scaled).")
+@click.option("--net", "net_faults", multiple=True, metavar="KIND[:K=V,...]",
+              help="Start with a network fault on every gripper's interfaces (repeatable), e.g. "
+              "latency:ms=200,jitter=50 or drop:p=0.3; wsg world net switches them later (wsg world net --help).")
 @click.option("--uvloop/--no-uvloop", "use_uvloop", default=None,
               help="Use uvloop (default: when installed, from pywsg[fast]).")
 @click.option("--part", "part_width", type=float, default=None, metavar="WIDTH",
@@ -133,12 +165,21 @@ def sim(
     can_tx_id: int,
     can_bitrate: int,
     modbus_port: int | None,
+    profinet_iface: str | None,
+    profinet_name: str | None,
+    profinet_ip: str | None,
+    profibus_line: str,
+    profibus_address: int | None,
+    profibus_baudrate: int,
     web_port: int | None,
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
+    idle_timeout: float,
     settings_file: Path | None,
     count: int,
+    time_scale: float,
+    net_faults: tuple[str, ...],
     use_uvloop: bool | None,
     part_width: float | None,
     block_width: float | None,
@@ -151,17 +192,33 @@ def sim(
     Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
     sockets closed). With --count N, gripper i listens on each given port + i.
     """
+    if profinet_name is not None:
+        from ..fieldbus.profinet.station import name_error
+
+        problem = name_error(profinet_name)
+        if problem:
+            raise click.BadParameter(f"{profinet_name!r}: {problem}", param_hint="--profinet-name")
     if can_rx_id == can_tx_id:
         raise click.BadParameter(f"0x{can_tx_id:X} is also --can-rx-id: requests and replies need their own "
                                  "identifiers", param_hint="--can-tx-id")
     from ..server.limits import Limits
     from ..server.sim import SimError, SimOptions, run_sim
 
+    profibus = _serial(profibus_line)
+    if profibus is not None:
+        from ..fieldbus.profibus.line import check_baudrate
+
+        try:
+            check_baudrate(profibus_baudrate)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--profibus-baudrate") from None
+
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
     if level:
-        logging.getLogger().setLevel(logging.INFO if level == 1 else logging.DEBUG)
-        logging.getLogger("pywsg").setLevel(logging.INFO if level == 1 else logging.DEBUG)
+        from .main import configure_logging
+
+        configure_logging(min(level, 2))
 
     web = web_port
     if web is not None and ctx.get_parameter_source("web_port") == click.core.ParameterSource.DEFAULT:
@@ -189,10 +246,18 @@ def sim(
         can_tx_id=can_tx_id,
         can_bitrate=can_bitrate,
         modbus_port=modbus_port,
+        profinet=profinet_iface,
+        profinet_name=profinet_name,
+        profinet_ip=profinet_ip,
+        profibus=profibus,
+        profibus_address=profibus_address,
+        profibus_baudrate=profibus_baudrate,
         web_port=web,
         settings=settings_file,
         count=count,
-        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections),
+        clock=_scaled_clock(time_scale),
+        limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
+                      idle_timeout=idle_timeout),
         web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
     )
 
@@ -204,6 +269,12 @@ def sim(
     from ..testing.scenario import Scenario, ScenarioError
     from ..testing.world import WorldError
 
+    if net_faults:
+        from ..server.netfault import NetFaults
+        from .proxy import start_fault
+
+        for spec in net_faults:
+            start_fault(NetFaults(), spec)  # a bad --net is a usage error before anything starts
     try:
         scenario = Scenario.load(scenario_file) if scenario_file else None
     except ScenarioError as exc:
@@ -219,6 +290,13 @@ def sim(
                 click.echo(f"gripper {i}: scenario t={t:.3f} s: {text}")
 
         setup_world(server, part=part_width, block=block_width, scenario=scenario, on_action=said)
+        if net_faults:
+            from ..server.netfault import net_faults as faults_of
+            from .proxy import start_fault
+
+            for sg in server.grippers:
+                for spec in net_faults:
+                    start_fault(faults_of(sg.gripper), spec)
 
     try:
         _run(run_sim(options, echo=echo, on_start=on_start), use_uvloop)

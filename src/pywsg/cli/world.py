@@ -13,7 +13,8 @@ from typing import Any
 
 import click
 
-from .runner import EXIT_CONNECTION
+from .main import SuggestingGroup
+from .runner import EXIT_CONNECTION, NumberArgsCommand
 
 DEFAULT_SIM = "http://127.0.0.1:8080"
 
@@ -72,6 +73,8 @@ def call(sim: str, method: str, path: str, body: dict[str, Any] | None = None, p
 
 def _state_lines(s: dict[str, Any]) -> list[str]:
     part = f"{s['part']:g} mm" if s.get("part") is not None else "none"
+    if s.get("part_inside") is not None:
+        part += " (inside: a ring)" if s["part_inside"] else " (outside)"
     block = f"{s['blocked_at']:g} mm" if s.get("blocked_at") is not None else "none"
     return [
         f"state        {s['gripper_state']}{'  (FAST STOP)' if s.get('fast_stop') else ''}",
@@ -81,20 +84,31 @@ def _state_lines(s: dict[str, Any]) -> list[str]:
         f"part         {part}",
         f"obstacle     {block}",
         f"faults       {', '.join(s.get('faults') or []) or 'none'}",
+        f"network      {_net_text(s.get('net') or {})}",
     ]
+
+
+def _net_text(net: dict[str, Any]) -> str:
+    """``{"latency": {"ms": 200, "jitter": 0}}`` -> ``latency ms=200 jitter=0``."""
+    parts = [" ".join([kind, *(f"{k}={v:g}" for k, v in params.items())]) for kind, params in net.items()]
+    return ", ".join(parts) or "healthy"
 
 
 def _show(ctx: click.Context, reply: dict[str, Any]) -> None:
     if ctx.obj["world_json"]:
         click.echo(json.dumps(reply, ensure_ascii=False))
+    elif "action" in reply and "gripper_state" not in reply.get("state", {}):
+        click.echo(reply["action"])  # a wsg proxy --control: network faults only
     elif "action" in reply:
         click.echo(f"{reply['action']}; gripper {reply['state']['gripper_state']} "
                    f"at {reply['state']['width']:g} mm")
+    elif "gripper_state" not in reply:
+        click.echo(f"network      {_net_text(reply.get('net') or {})}")
     else:
         click.echo("\n".join(_state_lines(reply)))
 
 
-@click.group("world")
+@click.group("world", cls=SuggestingGroup)
 @click.option("--sim", envvar="WSG_SIM", default=DEFAULT_SIM, show_default=True, metavar="URL",
               help="The sim's web address (wsg sim --web-port), or set WSG_SIM.")
 @click.option("--password", envvar="WSG_WEB_PASSWORD", default=None,
@@ -106,11 +120,19 @@ def world(ctx: click.Context, sim: str, password: str | None, as_json: bool) -> 
 
     \b
     Examples:
-      wsg world part 22            a 22 mm part between the fingers
+      wsg world part 22            a 22 mm part between the fingers (gripped from outside)
+      wsg world part 40 --inside   a 40 mm ring around the fingers (gripped from inside)
       wsg world part --remove      take it away (while HOLDING: part lost)
       wsg world block 30           a rigid obstacle at 30 mm; `wsg world unblock`
       wsg world fault power on     supply fault: FAST STOP until `... power off` and an ACK
       wsg world fault finger on --finger 2
+      wsg world fault ack on       acknowledge refused: 24h answers E_ACCESS_DENIED
+      wsg world fault watchdog on --timeout 5   FAST STOP after 5 s without a request
+      wsg world fault unplugged on --finger 1   a sensor finger stops talking
+      wsg world slip --duration 2  the held part slides out: PART LOST in 2 s
+      wsg world disconnect         the gripper closes its TCP connections
+      wsg world net latency --ms 200 --jitter 50   network faults (wsg world net --help)
+      wsg world net clear          every network fault off
       wsg world heat 40            40 °C warmer at once
       wsg world state              what the sim is doing now
 
@@ -131,9 +153,6 @@ json_option = click.option("--json", "as_json", is_flag=True, expose_value=False
                            callback=_set_json, help="Print the API's JSON reply.")
 
 #: A negative DELTA (``wsg world heat -10``) is a number, not an option.
-NUMBERS = {"ignore_unknown_options": True}
-
-
 def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None = None) -> None:
     _show(ctx, call(ctx.obj["sim"], method, path, body, ctx.obj["password"]))
 
@@ -141,11 +160,15 @@ def _run(ctx: click.Context, method: str, path: str, body: dict[str, Any] | None
 @world.command("part")
 @json_option
 @click.argument("width", type=float, required=False)
-@click.option("--stiffness", type=float, default=None, help="Part stiffness in N/mm (default: firm plastic).")
+@click.option("--stiffness", type=float, default=None,
+              help="Part stiffness in N/mm (default: rigid, a held part reads its own width).")
+@click.option("--inside/--outside", default=False, show_default=True,
+              help="Grip it from inside (a ring around the fingers, they open onto it) or from outside "
+                   "(between the fingers, they close onto it; the default).")
 @click.option("--remove", is_flag=True, help="Take the part away.")
 @click.pass_context
-def part(ctx: click.Context, width: float | None, stiffness: float | None, remove: bool) -> None:
-    """Put a part of WIDTH mm between the fingers (or --remove it)."""
+def part(ctx: click.Context, width: float | None, stiffness: float | None, inside: bool, remove: bool) -> None:
+    """Put a part of WIDTH mm between the fingers (--inside: a ring around them), or --remove it."""
     if remove:
         if width is not None:
             raise click.UsageError("give WIDTH or --remove, not both")
@@ -153,7 +176,7 @@ def part(ctx: click.Context, width: float | None, stiffness: float | None, remov
         return
     if width is None:
         raise click.UsageError("give the part's WIDTH in mm (or --remove)")
-    body: dict[str, Any] = {"width": width}
+    body: dict[str, Any] = {"width": width, "inside": inside}
     if stiffness is not None:
         body["stiffness"] = stiffness
     _run(ctx, "POST", "/part", body)
@@ -178,19 +201,83 @@ def unblock(ctx: click.Context) -> None:
 
 @world.command("fault")
 @json_option
-@click.argument("kind", type=click.Choice(["power", "current", "finger"]))
+@click.argument("kind", type=click.Choice(["power", "current", "finger", "ack", "watchdog", "unplugged"]))
 @click.argument("state", type=click.Choice(["on", "off"]))
-@click.option("--finger", type=click.IntRange(1, 2), default=1, show_default=True, help="Finger for KIND finger.")
+@click.option("--finger", type=click.IntRange(1, 2), default=1, show_default=True,
+              help="Finger for KIND finger and unplugged.")
+@click.option("--timeout", type=click.FloatRange(min=0), default=1.0, show_default=True, metavar="S",
+              help="KIND watchdog: FAST STOP after S seconds without a request.")
 @click.pass_context
-def fault(ctx: click.Context, kind: str, state: str, finger: int) -> None:
-    """Switch a fault on or off: supply voltage (power), motor current (current), finger over-current."""
+def fault(ctx: click.Context, kind: str, state: str, finger: int, timeout: float) -> None:
+    """Switch a fault on or off: supply voltage (power), motor current (current), finger over-current
+    (finger), acknowledge refused (ack), FAST STOP after a silent client (watchdog), a finger unplugged
+    (unplugged). What each one reports: docs/testing.md, "World faults"."""
     body: dict[str, Any] = {"kind": kind, "on": state == "on"}
-    if kind == "finger":
+    if kind in ("finger", "unplugged"):
         body["finger"] = finger
+    if kind == "watchdog":
+        body["timeout"] = timeout
     _run(ctx, "POST", "/fault", body)
 
 
-@world.command("heat", context_settings=NUMBERS)
+@world.command("slip")
+@json_option
+@click.option("--duration", type=click.FloatRange(min=0), default=1.0, show_default=True, metavar="S",
+              help="Seconds (gripper clock) until the part is gone.")
+@click.pass_context
+def slip(ctx: click.Context, duration: float) -> None:
+    """The part slides out of the fingers: a held part is lost (PART LOST) --duration s from now."""
+    _run(ctx, "POST", "/slip", {"duration": duration})
+
+
+@world.command("disconnect")
+@json_option
+@click.pass_context
+def disconnect(ctx: click.Context) -> None:
+    """The gripper closes its TCP connections: the sessions end without 07h, so FAST STOP (000 §1.4.2)."""
+    _run(ctx, "POST", "/disconnect")
+
+
+NET_KINDS = ("latency", "bandwidth", "slicer", "reset", "silent", "drop", "reorder", "garble", "clear")
+
+
+@world.command("net")
+@json_option
+@click.argument("kind", type=click.Choice(NET_KINDS))
+@click.argument("state", type=click.Choice(["on", "off"]), default="on")
+@click.option("--ms", type=float, default=None, help="latency: delay of each reply, ms.")
+@click.option("--jitter", type=float, default=None, help="latency: ± this many ms at random.")
+@click.option("--rate", type=float, default=None, help="bandwidth: bytes per second.")
+@click.option("--size", type=int, default=None, help="slicer: bytes per segment.")
+@click.option("--gap", type=float, default=None, help="slicer: ms between segments.")
+@click.option("--timeout", type=float, default=None,
+              help="reset: seconds after a connection opens (0: at once); silent: close after this many s (0: never).")
+@click.option("-p", "--p", "p", type=float, default=None, help="drop, reorder, garble: probability 0..1.")
+@click.option("--seed", type=int, default=None, help="Restart the random sequence (repeatable runs).")
+@click.pass_context
+def net(ctx: click.Context, /, kind: str, state: str, **params: Any) -> None:
+    """Switch a network fault of the sim's interfaces on (default) or off, at once.
+
+    \b
+    latency   --ms 200 --jitter 50    each reply later (TCP keeps the order)
+    bandwidth --rate 500              replies trickle at 500 bytes/s
+    slicer    --size 1 --gap 5        replies cut into 1-byte segments 5 ms apart
+    reset     --timeout 0             TCP connections reset (RST) now and on connect
+    silent    [--timeout 10]          no replies, requests ignored, connection open
+    drop      -p 0.3                  UDP datagrams lost (both directions)
+    reorder   -p 0.5                  UDP reply datagrams overtaken by the next one
+    garble    -p 0.01                 bytes flipped (serial line noise; TCP and UDP too)
+    clear                             every network fault off
+    """
+    if kind == "clear":
+        _run(ctx, "DELETE", "/net")
+        return
+    body: dict[str, Any] = {"kind": kind, "on": state == "on"}
+    body.update({k: v for k, v in params.items() if v is not None})
+    _run(ctx, "POST", "/net", body)
+
+
+@world.command("heat", cls=NumberArgsCommand)
 @json_option
 @click.argument("delta", type=float)
 @click.pass_context

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from .aio import AsyncFinger, AsyncGripper, AsyncMotion, AsyncStream, ReconnectPolicy
+from ._async.gripper import AsyncFinger, AsyncGripper, AsyncMotion, AsyncStream, ReconnectPolicy
+from ._sync.gripper import Finger, Gripper, Motion, Stream
 from .commlog import CommEntry, describe
-from .sync import Finger, Gripper, Motion, Stream
 from .types import FingerInfo, Limits, Reply, Sample, SoftLimits, State, Statistics, SystemInfo
 from .url import Endpoint, parse_url
 

@@ -15,7 +15,10 @@ The WSG protocol has no sequence numbers: a reply carries only the command ID. T
   outstanding the first E_SUCCESS frame of that ID answers it *and* is also given to the streams
   (it is a current sample either way); nothing is dropped.
 - A call that timed out leaves a "ghost" that swallows its late reply for a while, so the next
-  call of that ID cannot receive a stale answer.
+  call of that ID cannot receive a stale answer. When that reply never comes (a silent gripper, a
+  lost datagram), the ghost swallows the next call's reply instead; that call, if it times out too,
+  leaves no ghost of its own (its reply is the one already taken), so one lost reply costs at most one
+  more timeout instead of a chain of them.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ GHOST_TTL = 5.0  # s a late reply of a timed-out call is still expected
 class Waiter:
     """One expected frame. Shells subclass it and override :meth:`_wake`."""
 
-    __slots__ = ("command_id", "done", "error", "final", "frame", "ghost_until")
+    __slots__ = ("command_id", "done", "error", "final", "frame", "ghost_until", "robbed")
 
     def __init__(self, command_id: int, final: Waiter | None = None) -> None:
         self.command_id = command_id
@@ -46,6 +49,7 @@ class Waiter:
         self.done = False
         self.ghost_until = 0.0  # > 0: abandoned (timed out) until this monotonic time
         self.final = final  # moved to the final queue if the reply is E_CMD_PENDING
+        self.robbed = False  # a ghost ahead of it swallowed a frame while it waited (maybe its reply)
 
     def resolve(self, frame: Frame) -> None:
         if not self.done:
@@ -113,9 +117,15 @@ class Demux:
         return not self.replies.get(command_id) and not self.finals.get(command_id) and command_id not in self.streams
 
     def abandon(self, waiter: Waiter) -> None:
-        """The call gave up waiting: keep a ghost for its late reply (if still queued)."""
-        waiter.ghost_until = self.clock() + GHOST_TTL
+        """The call gave up waiting: keep a ghost for its late reply (if still queued) — unless a ghost
+        ahead of it already swallowed a frame meanwhile: that was its reply (module docstring)."""
         waiter.done = True
+        if waiter.robbed:
+            q = self.replies.get(waiter.command_id)
+            if q is not None and waiter in q:
+                q.remove(waiter)
+            return
+        waiter.ghost_until = self.clock() + GHOST_TTL
 
     def forget_final(self, waiter: Waiter) -> None:
         q = self.finals.get(waiter.command_id)
@@ -189,6 +199,9 @@ class Demux:
         if w.ghost_until:
             self.late += 1
             log.debug("late reply %02Xh after a timeout swallowed", frame.command_id)
+            q = self.replies.get(frame.command_id)
+            if q and not q[0].ghost_until:
+                q[0].robbed = True
             if status == Status.E_CMD_PENDING and w.final is not None:
                 w.final.ghost_until = w.ghost_until
                 self.finals.setdefault(frame.command_id, deque()).append(w.final)

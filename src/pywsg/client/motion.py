@@ -1,4 +1,4 @@
-"""What :class:`~pywsg.client.sync_handles.Motion` and :class:`~pywsg.client.aio_handles.AsyncMotion`
+"""What :class:`~pywsg.client.Motion` and :class:`~pywsg.client.AsyncMotion`
 share: the call, its final waiter (or the final frame, when the motion was already over) and the
 outcome. The shells add only the waiting, blocking or awaited."""
 

@@ -6,7 +6,7 @@ See docs/device.md. Public names::
     SystemLog, LogEntry, FirmwarePlugin, PLUGINS
 """
 
-from .clock import Clock, ManualClock, monotonic_clock
+from .clock import Clock, ManualClock, ScaledClock, monotonic_clock
 from .faults import Faults, Obstacle
 from .fingers import Finger
 from .gripper import Snapshot, VirtualGripper
@@ -18,7 +18,7 @@ from .settings import Settings, SettingsError
 
 __all__ = [
     "DEFAULT_MODEL", "PLUGINS", "PROFILES", "Clock", "Faults", "Finger", "FirmwarePlugin", "LogEntry",
-    "LogLevel", "ManualClock", "Obstacle", "Profile", "Session", "Settings", "SettingsError", "Snapshot",
-    "Subscription", "SystemLog", "VirtualGripper", "decode_fw_version", "encode_fw_version", "get_profile",
-    "monotonic_clock",
+    "LogLevel", "ManualClock", "Obstacle", "Profile", "ScaledClock", "Session", "Settings", "SettingsError",
+    "Snapshot", "Subscription", "SystemLog", "VirtualGripper", "decode_fw_version", "encode_fw_version",
+    "get_profile", "monotonic_clock",
 ]

@@ -49,8 +49,7 @@ stop's width and direction), ``soft`` (data: the soft limit's width), ``timeout`
 class Motion:
     """The motion in progress and what to answer when it ends.
 
-    ``kind``: homing, prepos, grip, release, jog, script, lost (part lost: fingers run on to the
-    end of the clamping travel), snap (obstacle removed while clamping).
+    ``kind``: homing, prepos, grip, release, jog, script, snap (obstacle removed while clamping).
     """
 
     kind: str
@@ -119,6 +118,9 @@ class Axis:
         self.contact: Contact | None = None
         self.bits = 0  # latched motion flags: AXIS_STOPPED, TARGET_POS_REACHED, BLOCKED_MINUS/PLUS
         self.obstacles: dict[str, Obstacle] = {}
+        # a motion that starts from a held part and heads into it meets it at once (000 §3.2.2 FLAGS D1:
+        # "a blocking condition towards the movement direction"), even when the part was squeezed
+        self.blocked_at_start: Obstacle | None = None
         self.stats = [0, 0, 0]  # 42h: grips, no part, part lost
 
     @property
@@ -181,6 +183,8 @@ class Axis:
             return None
         if m.stalled:
             return (max(now, m.deadline), 1, "timeout", None)
+        if self.blocked_at_start is not None:
+            return (max(now, tr.start_time), 0, "contact", self.blocked_at_start)
         if not tr.moving:
             return (max(now, tr.start_time), 1, "end", None)
         best: AxisEvent | None = None
@@ -253,6 +257,10 @@ class Axis:
     # ------------------------------------------------------------------ starting and stopping
 
     def start(self, now: float, motion: Motion, traj: Trajectory) -> None:
+        held = self.contact
+        self.blocked_at_start = None
+        if held is not None and held.kind == "hold" and motion.direction == held.direction and motion.kind != "grip":
+            self.blocked_at_start = held.obstacle  # a re-grip (25h) lifts off the part first: handlers.grip
         self.bits &= ~_MOTION_BITS
         self.contact = None
         self.motion = motion
@@ -261,6 +269,7 @@ class Axis:
 
     def halt(self, now: float, x: float | None = None) -> None:
         """Fingers stop at once (at ``x`` if given)."""
+        self.blocked_at_start = None
         pos = self.traj.position(now) if x is None else x
         self.traj = Trajectory.rest(now, pos)
 
@@ -325,13 +334,13 @@ class Axis:
             self.gstate = GS.NO_PART
             self.stats[1] += 1
             self._finish_with(m, S.E_CMD_FAILED)
-        elif m.kind == "lost":
-            self.gstate = GS.PART_LOST
         else:  # jog: cannot end by itself
             self.gstate = GS.IDLE
 
     def _on_contact(self, t: float, m: Motion, ob: Obstacle) -> None:
-        x = ob.width - self.offset
+        # from a held (squeezed) part the fingers stop where they are; else on the obstacle's surface
+        x = self.traj.position(t) if self.blocked_at_start is ob else ob.width - self.offset
+        self.blocked_at_start = None
         d = m.direction
         blocked_bit = SF_BLOCKED_PLUS if d > 0 else SF_BLOCKED_MINUS
         if m.kind == "grip":
@@ -351,7 +360,7 @@ class Axis:
                 self._finish_with(m, S.E_CMD_FAILED)
             return
         if m.kind == "homing":
-            self._wrong_reference(t, m, ob)
+            self._wrong_reference(t, m, x)
             return
         self.halt(t, x)
         self.bits |= blocked_bit
@@ -373,8 +382,14 @@ class Axis:
                 self.gstate = GS.IDLE
             else:
                 self._finish_with(m, S.E_AXIS_BLOCKED)
-        elif m.kind in ("lost", "snap"):
+        elif m.kind == "snap":
             self.motion = None
+
+    def _part_lost(self, t: float) -> None:
+        """The part was removed while held: 41h PART_LOST, counted (42h), logged."""
+        self.gstate = GS.PART_LOST
+        self.stats[2] += 1
+        self.log.add(t, LogLevel.WARNING, f"part lost at {self.traj.position(t):.2f} mm")
 
     def _stall(self, m: Motion) -> None:
         """26h blocked: the manual lists no blocked status for it, so the drive pushes on (RELEASING)
@@ -382,11 +397,12 @@ class Axis:
         m.stalled = True
         self.motion = m
 
-    def _wrong_reference(self, t: float, m: Motion, ob: Obstacle) -> None:
+    def _wrong_reference(self, t: float, m: Motion, x: float) -> None:
         """000 §3.2.1: "Obstacles … during homing may result in a wrong reference point": the blocking
-        position becomes the origin (0 mm homing negative, the stroke homing positive)."""
+        position (``x``, in the old coordinates) becomes the origin (0 mm homing negative, the stroke
+        homing positive)."""
         origin = self.profile.stroke if m.direction > 0 else 0.0
-        self.offset = ob.width - origin
+        self.offset = x + self.offset - origin
         self.halt(t, origin)
         self.referenced = True
         self.gstate = GS.IDLE
@@ -403,17 +419,11 @@ class Axis:
             x = self.traj.position(now)
             self.bits &= ~SF_BLOCKED
             if c.kind == "hold":
-                self.gstate = GS.PART_LOST
-                self.stats[2] += 1
-                self.log.add(now, LogLevel.WARNING, f"part lost at {x:.2f} mm")
-                # the fingers run on to the end of the grip's clamping travel (or one travel further)
-                travel = self.clamping_travel
-                end = c.nominal + c.direction * travel
-                if (end - x) * c.direction <= 0:
-                    end = x + c.direction * travel
-                end = min(max(end, 0.0), self.profile.stroke)
-                self.motion = Motion("lost", None, None, end, self.profile.max_speed / 4, c.direction)
-                self.traj = plan_move(now, x, end, self.motion.speed, self.acceleration)
+                # The part monitor sees the gripping force go and stops the drive where the fingers are:
+                # PART_LOST at rest, so the 21h/25h/26h that 000 §3.4.2 names follow at once
+                # (docs/fidelity.md "A lost part")
+                self.halt(now)
+                self._part_lost(now)
             elif c.kind == "clamp":
                 self.motion = Motion("snap", None, None, c.target, c.speed, c.direction)
                 self.traj = plan_move(now, x, c.target, max(c.speed, self.profile.min_speed), self.acceleration)
@@ -432,13 +442,21 @@ class Axis:
     # ------------------------------------------------------------------ jog and script motion
 
     def jog_stop(self, now: float) -> bool:
-        """End a jog (level back to 0); True if one ran."""
+        """End a jog (level back to 0): "the Jog mode is left and the drive is stopped" (002 §4.7,
+        003 §5.7) — a running jog stops, a jog pressing on an obstacle lets go (force 0, BLOCKED flags
+        cleared as by a stop, 000 App. B D2/D3). True if either was the case."""
         m = self.motion
-        if m is None or m.kind != "jog":
+        c = self.contact
+        pressing = c is not None and c.kind == "press" and c.resume is None  # a jog's press (scripts resume)
+        if (m is None or m.kind != "jog") and not pressing:
             return False
-        self.halt(now)
-        self.motion = None
-        self.gstate = GS.IDLE
+        if m is not None and m.kind == "jog":
+            self.halt(now)
+            self.motion = None
+            self.gstate = GS.IDLE
+        if pressing:
+            self.contact = None
+            self.bits &= ~SF_BLOCKED
         self.update_load(now)
         return True
 

@@ -100,6 +100,8 @@ class DeviceCore:
     script_if: int
     script_of: int
     script_failure: bool
+    ack_refused = False
+    """World fault "acknowledge refused": 24h answers E_ACCESS_DENIED as while a fault persists."""
 
     def __init__(self, clock: Clock) -> None:
         self.clock: Clock = clock
@@ -220,6 +222,10 @@ class DeviceCore:
                 f.powered = True
                 self.streams.emit(s if isinstance(s, Session) else None, Frame.reply(cid, S.E_SUCCESS))
                 self.changed()
+        elif kind == "call":  # a world fault's timer (pywsg.testing.world_faults): fn(t)
+            fn = args[0]
+            if callable(fn):
+                fn(t)
 
     # ------------------------------------------------------------------ motion (AxisHost and helpers)
 
@@ -414,7 +420,7 @@ class DeviceCore:
         """Acknowledge (24h / fieldbus ACK). E_ACCESS_DENIED while a power or current fault persists."""
         now = self.clock()
         self.advance(now)
-        if self.health.power_fault or self.health.current_fault:
+        if self.health.power_fault or self.health.current_fault or self.ack_refused:
             return S.E_ACCESS_DENIED
         if self._bits & _SF_FAST_STOP:
             self._bits &= ~_SF_FAST_STOP

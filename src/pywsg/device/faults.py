@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-DEFAULT_PART_STIFFNESS = 500.0  # N/mm, assumed: a firm plastic part
+DEFAULT_PART_STIFFNESS = math.inf  # N/mm: rigid, so a held part reads its own width (docs/fidelity.md)
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,15 +59,17 @@ class Faults:
         # placed below the fingers' current width: they close onto it; above: they open onto it
         return -1 if width <= self._g.true_width() + 1e-9 else 1
 
-    def place_part(self, width: float, stiffness: float = DEFAULT_PART_STIFFNESS,
-                   inside: bool | None = None) -> None:
-        """Put a part of ``width`` mm between the fingers (``inside=True``: around them, gripped
-        from inside). ``stiffness`` in N/mm decides how far the fingers squeeze it."""
+    def place_part(self, width: float, stiffness: float = DEFAULT_PART_STIFFNESS, inside: bool = False) -> None:
+        """Put a part of ``width`` mm in the gripper: by default between the fingers, gripped from outside
+        (closing onto it); ``inside=True``: a ring around the fingers, gripped from inside (opening onto
+        it). ``stiffness`` in N/mm: how far the fingers squeeze it (default rigid: the part's width)."""
         if not math.isfinite(width) or width < 0:
             raise ValueError("width: must be a finite, non-negative number of mm")
         if not stiffness > 0:
             raise ValueError("stiffness: must be positive (N/mm)")
-        self._g.obstacles["part"] = Obstacle("part", float(width), self._side(width, inside), stiffness)
+        if not isinstance(inside, bool):
+            raise ValueError("inside: must be true (a ring gripped from inside) or false (gripped from outside)")
+        self._g.obstacles["part"] = Obstacle("part", float(width), 1 if inside else -1, stiffness)
         self._g.obstacles_changed()
 
     def remove_part(self) -> None:

@@ -54,8 +54,8 @@ class Finger:
         f = FingerFlag.NONE
         if self.powered:
             f |= FingerFlag.POWER_ON
-        if self.type != FingerType.GENERIC and self.powered:
-            f |= FingerFlag.CONFIG_AVAIL | FingerFlag.COMM_OPEN
+        if self.type != FingerType.GENERIC and self.powered and not self.comm_fault:
+            f |= FingerFlag.CONFIG_AVAIL | FingerFlag.COMM_OPEN  # an unplugged finger has neither
         if self.fault:
             f |= FingerFlag.POWER_FAULT
         if self.comm_fault:

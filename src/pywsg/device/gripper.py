@@ -50,11 +50,14 @@ __all__ = ["QUERY_IDS", "Snapshot", "VirtualGripper"]
 S = Status
 
 _SF_CMD_FAILURE = int(SystemFlag.SF_CMD_FAILURE)
-# commands whose success does not clear SF_CMD_FAILURE ("the last command returned an error"):
-# read-only queries would otherwise always clear it before it could be read.
+# reads: a well-formed one neither sets nor clears SF_CMD_FAILURE ("the last command returned an
+# error"). A poll would otherwise clear it before it could be read, and a read that finds nothing
+# (52h without a tag, 35h without soft limits, 63h of a generic finger) would raise it: no read may
+# change what the gripper reports. A malformed read (wrong length, bad parameter) still raises it.
 QUERY_IDS = frozenset((0x06, 0x31, 0x33, 0x35, 0x40, 0x41, 0x42, 0x43, 0x44, 0x45, 0x46, 0x50, 0x52, 0x53,
                        0x60, 0x61, 0x63, 0x70, 0x71, 0x73))
 _E_CMD_PENDING = int(Status.E_CMD_PENDING)
+_NOTHING_TO_READ = frozenset((int(Status.E_NOT_AVAILABLE), int(Status.E_IO_ERROR)))
 _REQUEST_CACHE_SIZE = 256
 _REQUEST_CACHE_BYTES = 64
 
@@ -122,7 +125,7 @@ class VirtualGripper(DeviceCore):
                 self._transitions.append((before, GripperState.IDLE))
         self._event = None
         self._bits = 0
-        self.tag = None
+        self.tag = settings.tag  # kept in the settings (file): a restart keeps it
         self.fingers = [Finger.of(settings.finger1), Finger.of(settings.finger2)]
         self.health = Health(self.thermal, self.log)
         self.script_if = 0
@@ -174,7 +177,7 @@ class VirtualGripper(DeviceCore):
         self.changed()
 
     def restart(self) -> None:
-        """Power-cycle: session values (acceleration, force limit, soft limits, tag) are lost."""
+        """Power-cycle: session values (acceleration, force limit, soft limits) are lost; the tag is kept."""
         now = self.clock()
         self.abort_motion(S.E_CMD_ABORTED, now)
         self._power_up(self.settings)
@@ -354,7 +357,9 @@ class VirtualGripper(DeviceCore):
         out.append(reply)
         p = reply.payload
         code = p[0] | (p[1] << 8)
-        if code != 0 and code != _E_CMD_PENDING:
+        if cid in QUERY_IDS and (code == 0 or code in _NOTHING_TO_READ):
+            pass  # a read changes nothing the gripper reports (docs/fidelity.md)
+        elif code != 0 and code != _E_CMD_PENDING:
             if not self._bits & _SF_CMD_FAILURE:
                 self._bits |= _SF_CMD_FAILURE
                 schedule.changed()

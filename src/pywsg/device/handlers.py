@@ -120,9 +120,7 @@ def preposition(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     g.script_stop_if_running(now)
     v = g.profile.clamp_speed(speed)
     d = 1 if target >= x else -1
-    if axis.holding():
-        axis.contact = None  # leaving the part
-    axis.gstate = GS.POSITIONING
+    axis.gstate = GS.POSITIONING  # leaving a held part: start_motion lets go of it (or meets it)
     g.start_motion(now, Motion("prepos", s, 0x21, target, v, d,
                                stop_on_block=bool(flags & PrepositionFlag.STOP_ON_BLOCK)),
                    plan_move(now, x, target, v, axis.acceleration))
@@ -236,8 +234,8 @@ def set_soft_limits(g: DeviceCore, s: Session, payload: bytes, now: float) -> Fr
     minus, plus = _SOFT.unpack(payload)
     if not (math.isfinite(minus) and math.isfinite(plus)) or minus > plus:
         return Frame.reply(0x34, S.E_INVALID_PARAMETER)
-    stroke = g.profile.stroke
-    g.axis.soft_limits = (min(max(minus, 0.0), stroke), min(max(plus, 0.0), stroke))
+    # kept as given: 35h "Return the soft limits if set" (000 §3.3.6); beyond the stroke they never bite
+    g.axis.soft_limits = (minus, plus)
     g.log.add(now, LogLevel.INFO, f"soft limits set: {minus:.2f} .. {plus:.2f} mm")
     g.reschedule(now)
     g.changed()
@@ -309,7 +307,7 @@ def statistics(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
 
 
 def temperature(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
-    return Frame.reply(0x46, S.E_SUCCESS, _TEMP.pack(round(g.thermal.temperature(now) * 10)))
+    return Frame.reply(0x46, S.E_SUCCESS, _TEMP.pack(max(-32768, min(32767, round(g.thermal.temperature(now) * 10)))))
 
 
 # 3.5 system configuration
@@ -325,6 +323,7 @@ def set_tag(g: DeviceCore, s: Session, payload: bytes, now: float) -> Frame:
     if not payload or any(b < 0x20 or b > 0x7E for b in payload):
         return Frame.reply(0x51, S.E_INVALID_PARAMETER)
     g.tag = payload.decode("ascii")
+    g.settings = g.settings.updated(tag=g.tag)  # saved with the settings: the tag survives a restart
     return Frame.reply(0x51, S.E_SUCCESS)
 
 

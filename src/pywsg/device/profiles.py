@@ -73,37 +73,43 @@ class Profile:
         return min(max(a, self.min_acc), self.max_acc)
 
 
+#: mm/s² at power-up (000 §3.3.1 "On startup, a default value is used"; no manual or data sheet gives
+#: it): the models' maximum, so that clients that never send 30h — the ROS driver, Stanford UMI's 30 Hz
+#: PD loop — see the drive follow a speed command within one control period (docs/fidelity.md).
+DEFAULT_ACCELERATION = 5000.0
+DEFAULT_ACCELERATION_SOURCE = ("decided from the public clients (ROS wsg_50, UMI, minWSG never set 30h; "
+                               "UMI's 30 Hz loop tracks from 3000 mm/s²), docs/fidelity.md")
 _FW = encode_fw_version(4, 0, 2)  # assumed: a firmware 4.0.x, the release the newest seed documents
 
 
 def _src(**given: str) -> dict[str, str]:
     names = ("stroke", "min_speed", "max_speed", "min_acc", "max_acc", "min_force", "nom_force", "ovr_force",
              "default_acceleration", "homing_speed", "hwrev", "fw_version", "serial_number")
-    return {n: given.get(n, ASSUMED) for n in names}
+    return {n: given.get(n, DEFAULT_ACCELERATION_SOURCE if n == "default_acceleration" else ASSUMED)
+            for n in names}
 
 
 PROFILES: dict[str, Profile] = {
     "wsg50": Profile(
         "wsg50", "WSG 50", DeviceType.WSG50, stroke=110.0, min_speed=5.0, max_speed=420.0, min_acc=100.0,
-        max_acc=5000.0, min_force=5.0, nom_force=80.0, ovr_force=120.0, default_acceleration=150.0,
+        max_acc=5000.0, min_force=5.0, nom_force=80.0, ovr_force=120.0, default_acceleration=DEFAULT_ACCELERATION,
         homing_speed=100.0, hwrev=1, fw_version=_FW, serial_number=10001,
         sources=_src(stroke=DATA_SHEET + " (WSG 50-110: 110 mm stroke)", max_speed=DATA_SHEET + " (420 mm/s)",
-                     nom_force=DATA_SHEET + " (80 N gripping force)",
-                     default_acceleration="command manual 1.2.2 example 3 (150.0 mm/s²)"),
+                     nom_force=DATA_SHEET + " (80 N gripping force)"),
     ),
     "wsg32": Profile(
         "wsg32", "WSG 32", DeviceType.WSG32, stroke=64.0, min_speed=5.0, max_speed=400.0, min_acc=100.0,
-        max_acc=5000.0, min_force=5.0, nom_force=50.0, ovr_force=80.0, default_acceleration=150.0,
+        max_acc=5000.0, min_force=5.0, nom_force=50.0, ovr_force=80.0, default_acceleration=DEFAULT_ACCELERATION,
         homing_speed=100.0, hwrev=1, fw_version=_FW, serial_number=20001, sources=_src(),
     ),
     "wsg25": Profile(
         "wsg25", "WSG 25", DeviceType.WSG25, stroke=64.0, min_speed=5.0, max_speed=400.0, min_acc=100.0,
-        max_acc=5000.0, min_force=2.0, nom_force=20.0, ovr_force=20.0, default_acceleration=150.0,
+        max_acc=5000.0, min_force=2.0, nom_force=20.0, ovr_force=20.0, default_acceleration=DEFAULT_ACCELERATION,
         homing_speed=100.0, hwrev=1, fw_version=_FW, serial_number=50001, sources=_src(),
     ),
     "wsg70": Profile(
         "wsg70", "WSG 70", DeviceType.WSG70, stroke=110.0, min_speed=5.0, max_speed=400.0, min_acc=100.0,
-        max_acc=5000.0, min_force=20.0, nom_force=200.0, ovr_force=400.0, default_acceleration=150.0,
+        max_acc=5000.0, min_force=20.0, nom_force=200.0, ovr_force=400.0, default_acceleration=DEFAULT_ACCELERATION,
         homing_speed=100.0, hwrev=1, fw_version=_FW, serial_number=60001,
         sources=_src(ovr_force=ASSUMED + " (above 327 N, hence the fieldbus's 1/10 N force unit on WSG 70)"),
     ),

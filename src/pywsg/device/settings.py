@@ -43,6 +43,9 @@ class Settings:
     - ``serial_number``: 50h SN (None: the profile's).
     - ``finger1`` / ``finger2``: installed finger type (``generic``, ``fmf``, ``dsa``).
     - ``script``: firmware plugin started at power-up (``ros_measure``, ``umi_measure``), or None.
+    - ``tag``: the device tag (51h/52h; set by command, kept here so it survives a restart), or None.
+    - ``location`` / ``contact``: shown in the web interface's header (fieldbus manual 003 §6,
+      figure 1: "Location: n/a, Contact: n/a"), or None.
     """
 
     crc_check: bool = True
@@ -57,12 +60,20 @@ class Settings:
     finger1: str = "generic"
     finger2: str = "generic"
     script: str | None = None
+    tag: str | None = None
+    location: str | None = None
+    contact: str | None = None
 
     def __post_init__(self) -> None:
         self.validate()
 
     def validate(self) -> None:
         """Raise :class:`SettingsError` (a ValueError) naming the first invalid field."""
+        for name in ("tag", "location", "contact"):  # 000 §3.5.2: up to 64 characters, no control characters
+            text = getattr(self, name)
+            if text is not None and (not isinstance(text, str) or not text or len(text) > 64
+                                     or any(not " " <= c <= "~" for c in text)):
+                raise SettingsError(f"{name}: must be 1 to 64 printable ASCII characters, or empty")
         for name in ("crc_check", "fast_stop_on_disconnect", "auto_homing"):
             if not isinstance(getattr(self, name), bool):
                 raise SettingsError(f"{name}: must be true or false")

@@ -17,6 +17,10 @@ MOVE_RISE_C = 3.0
 TAU_S = 300.0
 WARNING_C = 60.0
 FAULT_C = 70.0
+MIN_C = -40.0
+MAX_C = 150.0
+"""The temperature a world action may set (°C): an industrial sensor's range, far inside what 46h's
+signed 0.1 °C field can carry (±3276.7 °C); docs/sim.md records the choice."""
 
 
 class ThermalModel:
@@ -52,8 +56,14 @@ class ThermalModel:
         self.rise = rise
 
     def heat(self, t: float, delta: float) -> None:
-        """Add ``delta`` °C at once (fault injection)."""
-        self.temp0 = self.temperature(t) + delta
+        """Add ``delta`` °C at once (fault injection). Raises ValueError (naming ``delta_c``) when the
+        result would leave :data:`MIN_C`..:data:`MAX_C`; the temperature is then unchanged."""
+        now = self.temperature(t)
+        new = now + delta
+        if not (math.isfinite(new) and MIN_C <= new <= MAX_C):
+            raise ValueError(f"delta_c: must keep the temperature within {MIN_C:g}..{MAX_C:g} °C "
+                             f"(now {now:.1f} °C), not change it by {delta:+g}")
+        self.temp0 = new
         self.t0 = t
 
     def crossing(self, threshold: float, after: float) -> float | None:

@@ -1,10 +1,14 @@
-"""Fieldbus interface of the WSG (fieldbus manuals 002/003): register image, controller, Modbus/TCP, PLC side.
+"""Fieldbus interface of the WSG (fieldbus manuals 002/003): one controller, many buses.
 
 - :mod:`.image` — the 8-byte output / 12-byte input register image (sans-IO, bus units).
-- :mod:`.controller` — :class:`FieldbusController`: edges, jog levels, FAST STOP rules on a virtual gripper.
-- :mod:`.modbus` — ``serve_modbus(gripper, host, port)``: the image over Modbus/TCP (pymodbus 3.13.1 … 3.16).
-- :mod:`.plc` — :class:`FieldbusGripper`: the PLC side, a Modbus/TCP master with the same edge semantics.
-- :mod:`.profibus` — PROFIBUS diagnosis message and image bytes as plain functions.
+- :mod:`.controller` — :class:`FieldbusController`: edges, jog levels, FAST STOP rules on a virtual
+  gripper; every bus of the gripper feeds this one controller (``attach_bus``, ``fail_safe``).
+- :mod:`.bus` — :class:`~.bus.BusAdapter`, what a bus on the gripper's side implements.
+- :mod:`.exchange` — :class:`~.exchange.ImageExchange`, what a master on the PLC's side implements,
+  and ``open_exchange(url)``.
+- :mod:`.plc` — :class:`FieldbusGripper`, :class:`~.plc.GrippingCycle`: the PLC side over any bus.
+- one subpackage per bus, both sides: :mod:`.modbus` (Modbus/TCP), :mod:`.profibus` (PROFIBUS DP-V0
+  slave: FDL, DP state machine, serial line, GSD facts, diagnosis message), ``profinet`` (PROFINET IO).
 """
 
 from __future__ import annotations

@@ -33,6 +33,11 @@ so it holds whatever the binary protocol's 41h reports (decisions in docs/fideli
   MOVE stops on a block (21h flag STOP_ON_BLOCK) instead of clamping on, so it ends.
 - FAST STOP: "The gripper state is set to IDLE" (002 §4.6, 003 §5.6), from any source, while the
   FAST STOP lasts and until the next accepted command or a motion started elsewhere.
+
+One controller, many buses: every bus adapter (:class:`~pywsg.fieldbus.bus.BusAdapter`) of the
+gripper feeds this one controller and registers with :meth:`FieldbusController.attach_bus`; a bus
+whose master is lost calls :meth:`FieldbusController.fail_safe` (FAST STOP, outputs to zero: the
+decision and its reasons are in docs/fidelity.md, "Fieldbus master lost").
 """
 
 from __future__ import annotations
@@ -40,10 +45,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from ..protocol import CATALOG, Command, Frame, GripperState, PrepositionFlag, Status, SystemFlag
 from .image import JOG, MOTION_COMMANDS, CmdFlag, InputImage, OutputImage, force_scale
+
+if TYPE_CHECKING:
+    from .bus import BusAdapter
 
 log = logging.getLogger(__name__)
 
@@ -156,6 +164,7 @@ class FieldbusController:
         self._shown: GripperState | None = None
         self._failed: tuple[CmdFlag, int] | None = None
         self._listeners: list[Callable[[Event], None]] = []
+        self._buses: list[BusAdapter] = []
         self.session = gripper.open_session("fieldbus", peer="fieldbus", deliver=self._deliver)
         self.limits = self._read_limits()
 
@@ -225,6 +234,40 @@ class FieldbusController:
         """Call ``fn(event)`` for every command the controller issues."""
         self._listeners.append(fn)
 
+    # --- buses -----------------------------------------------------------------------------------
+    @property
+    def buses(self) -> tuple[BusAdapter, ...]:
+        """The bus adapters feeding this controller, in the order they attached."""
+        return tuple(self._buses)
+
+    def attach_bus(self, adapter: BusAdapter) -> None:
+        """Register a bus adapter (listed by :attr:`buses`, shown by the Fieldbus Monitor)."""
+        if adapter not in self._buses:
+            self._buses.append(adapter)
+
+    def detach_bus(self, adapter: BusAdapter) -> None:
+        """Forget a bus adapter that stopped serving (no error if it was not attached)."""
+        if adapter in self._buses:
+            self._buses.remove(adapter)
+
+    def fail_safe(self, bus: str, reason: str) -> None:
+        """A bus lost its master: FAST STOP, and the output image falls back to all zeros.
+
+        Called by a bus adapter when its master is gone without saying goodbye (PROFINET AR watchdog
+        or abort, PROFIBUS watchdog or Global_Control Clear). As an unannounced TCP close (000
+        §1.4.2: "lost connections must be considered as severe errors"), it raises FAST STOP (STATUS =
+        E_CMD_ABORTED; a running motion or jog stops; the master acknowledges with STOP/ACK when it
+        is back). The outputs the lost master left behind are dropped, as PROFIBUS DP slaves drop
+        theirs to the fail-safe value 0: the IF flags clear, no jog level stays raised, and the
+        returning master's first image is read against zeros. docs/fidelity.md, "Fieldbus master lost".
+        """
+        log.warning("fieldbus %s: master lost (%s): FAST STOP", bus, reason)
+        self._stop_jog()
+        self._raise_fast_stop(f"{bus} master lost ({reason})", Status.E_CMD_ABORTED)
+        if self.output_image.if_flags:
+            self._set_script_if(0)
+        self.output_image = OutputImage()
+
     def close(self) -> None:
         """Close the controller's device session (stops a running jog)."""
         if self._jog_dir:
@@ -237,11 +280,7 @@ class FieldbusController:
         old, new = self.output_image, image
         self.output_image = new
         if new.if_flags != old.if_flags:
-            set_if = getattr(self.gripper, "set_script_if", None)
-            if set_if is not None:
-                set_if(new.if_flags)   # running scripts are told
-            else:
-                setattr(self.gripper, "script_if", new.if_flags)  # noqa: B010
+            self._set_script_if(new.if_flags)
         rising = CmdFlag(int(new.cmdflags) & ~int(old.cmdflags) & 0x3F)
         params_changed = (new.width, new.speed, new.force_limit) != (old.width, old.speed, old.force_limit)
         held = new.cmdflags & (CmdFlag.STOP_ACK | CmdFlag.FASTSTOP)
@@ -269,6 +308,13 @@ class FieldbusController:
                 else:
                     self._motion(lowest, new)
         self._update_jog(new, blocked=bool(held))
+
+    def _set_script_if(self, flags: int) -> None:
+        set_if = getattr(self.gripper, "set_script_if", None)
+        if set_if is not None:
+            set_if(flags)   # running scripts are told
+        else:
+            setattr(self.gripper, "script_if", flags)  # noqa: B010
 
     # --- commands ------------------------------------------------------------------------------
     def _refused(self, cmd: CmdFlag) -> bool:

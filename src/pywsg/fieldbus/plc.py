@@ -1,11 +1,12 @@
-"""The PLC side of the fieldbus interface: a Modbus/TCP master and the manual's gripping cycle.
+"""The PLC side of the fieldbus interface: a master over any bus, and the manual's gripping cycle.
 
-- :class:`AsyncFieldbusGripper` (asyncio) and :class:`FieldbusGripper` (blocking) talk Modbus/TCP to a
-  real WSG or to ``wsg sim --modbus-port N`` with the bus's edge semantics: set the parameters,
-  raise the command flag, wait until the gripper shows the command started, drop the flag, wait for
-  the result. Units: mm, mm/s, N.
+- :class:`AsyncFieldbusGripper` (asyncio) and :class:`FieldbusGripper` (blocking) drive a real WSG
+  or ``wsg sim`` over any :class:`~pywsg.fieldbus.exchange.ImageExchange` (Modbus/TCP, PROFINET,
+  PROFIBUS; ``open_url("modbus-tcp://HOST:PORT")`` picks it by URL) with the bus's edge semantics:
+  set the parameters, raise the command flag, wait until the gripper shows the command started,
+  drop the flag, wait for the result. Units: mm, mm/s, N.
 - :class:`GrippingCycle` is the SCL demo of 002 Appendix D (states −1..10) ported to Python as a
-  sans-IO scan function: ``step(inputs, now) -> outputs``; ``wsg plc-demo`` runs it over Modbus/TCP.
+  sans-IO scan function: ``step(inputs, now) -> outputs``; ``wsg plc-demo`` runs it over any bus.
   It reads the input bytes through :class:`WsgReceive`, the listing's ``WSG_RECEIVE`` struct mapped
   as an S7 PLC maps it (``receive.STW1.IDLE``, ``receive.SYSSTATE.REFERENCED``).
 """
@@ -15,15 +16,13 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
-from collections.abc import Awaitable, Callable, Coroutine
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass, field, replace
 from typing import Any, TypeVar
 
-from pymodbus.client import AsyncModbusTcpClient
-from pymodbus.exceptions import ModbusException
-
 from ..protocol import GState, Status, SystemFlag
-from .image import INPUT_REGISTERS, CmdFlag, InputImage, OutputImage, force_scale
+from .exchange import FieldbusConnectionError, ImageExchange, open_exchange
+from .image import CmdFlag, InputImage, OutputImage, force_scale
 
 T = TypeVar("T")
 
@@ -44,82 +43,62 @@ class FieldbusError(Exception):
         self.status: Status | int | None = image.status_code if image is not None else None
 
 
-class FieldbusConnectionError(ConnectionError):
-    """No usable Modbus/TCP connection: refused, lost, or no reply within the timeout.
-
-    Raised instead of pymodbus's own exceptions (``ModbusIOException``, ``ConnectionException``), so
-    callers handle one ``ConnectionError`` for every way the bus can fail.
-    """
-
-
 class AsyncFieldbusGripper:
-    """Modbus/TCP master for the WSG fieldbus interface (asyncio).
+    """Fieldbus master for the WSG (asyncio) over any :class:`~pywsg.fieldbus.exchange.ImageExchange`.
 
     ``model`` selects the force unit (1/10 N on "wsg70"). ``poll_interval`` is the bus cycle used
-    while waiting, in seconds.
+    while waiting, in seconds. A connection failure is a
+    :class:`~pywsg.fieldbus.exchange.FieldbusConnectionError` (a ConnectionError), whatever the bus.
     """
 
-    def __init__(self, client: AsyncModbusTcpClient, model: str = "wsg50", device_id: int = 1,
-                 poll_interval: float = 0.002) -> None:
-        self.client = client
+    def __init__(self, exchange: ImageExchange, model: str = "wsg50", poll_interval: float = 0.002) -> None:
+        self.exchange = exchange
         self.model = model
-        self.device_id = device_id
         self.poll_interval = poll_interval
         self.outputs = OutputImage()
         self.inputs = InputImage()
-        self.where = "the Modbus/TCP server"   # open() names it: modbus-tcp://HOST:PORT
-        self.timeout: float | None = None      # per request, s (set by open())
-        self._answered = False                 # a request has succeeded: a later failure is a lost link
 
-    async def _call(self, request: Callable[[], Awaitable[T]]) -> T:
-        """Make and await one pymodbus request; a transport failure (raised when the request is made,
-        as pymodbus does on a closed connection, or while awaiting it) becomes
-        :class:`FieldbusConnectionError`."""
-        try:
-            reply = await request()
-        except ModbusException as exc:
-            raise FieldbusConnectionError(self._explain(exc)) from exc
-        self._answered = True
-        return reply
-
-    def _explain(self, exc: ModbusException) -> str:
-        """One line for a pymodbus failure: lost after replies, or never a Modbus reply at all."""
-        text = str(exc)
-        within = f" within {self.timeout:g} s" if self.timeout is not None else ""
-        if self._answered:
-            reason = f"no reply{within}" if "No response" in text else "closed by the peer"
-            return f"{self.where}: connection lost ({reason})"
-        if "No response" in text:
-            return f"{self.where}: no Modbus reply{within} (is this a Modbus/TCP server?)"
-        return f"{self.where}: {text.removeprefix('Modbus Error: ')}"
+    @classmethod
+    async def open_url(cls, url: str, *, model: str = "wsg50", timeout: float = 3.0,
+                       poll_interval: float = 0.002) -> AsyncFieldbusGripper:
+        """Open the bus named by ``url`` (:func:`~pywsg.fieldbus.exchange.open_exchange`:
+        ``modbus-tcp://HOST[:PORT]``, ``profinet://IFACE/STATION``, ``profibus://PORT?address=N``);
+        ``timeout`` in s per exchange. ValueError for a bad URL, FieldbusConnectionError when the
+        gripper cannot be reached."""
+        return await cls.start(await open_exchange(url, timeout=timeout), model=model, poll_interval=poll_interval)
 
     @classmethod
     async def open(cls, host: str = "127.0.0.1", port: int = 502, *, model: str = "wsg50",
                    device_id: int = 1, timeout: float = 3.0, poll_interval: float = 0.002) -> AsyncFieldbusGripper:
-        """Connect to ``host:port``; ``timeout`` in s per request.
+        """Connect over Modbus/TCP to ``host:port``; ``timeout`` in s per request.
 
         Raises :class:`FieldbusConnectionError` (a ConnectionError) when the connection is refused or
         the peer does not answer Modbus within ``timeout``.
         """
-        client = AsyncModbusTcpClient(host, port=port, timeout=timeout, retries=0)
-        if not await client.connect():
-            client.close()
-            raise FieldbusConnectionError(f"modbus-tcp://{host}:{port}: cannot connect, refused or no such host")
-        self = cls(client, model, device_id, poll_interval)
-        self.where, self.timeout = f"modbus-tcp://{host}:{port}", timeout
-        # Start from the gripper's current outputs, so opening never fires an edge.
-        try:
-            rr = await self._call(lambda: client.read_holding_registers(0, count=4, device_id=device_id))
-        except BaseException:
-            client.close()
-            raise
-        if not rr.isError():
-            self.outputs = OutputImage.from_registers(list(rr.registers))
+        from .modbus.exchange import ModbusExchange
+
+        exchange = await ModbusExchange.open(host, port, device_id=device_id, timeout=timeout)
+        return await cls.start(exchange, model=model, poll_interval=poll_interval)
+
+    @classmethod
+    async def start(cls, exchange: ImageExchange, *, model: str = "wsg50",
+                    poll_interval: float = 0.002) -> AsyncFieldbusGripper:
+        """Wrap an open exchange; closes it if the first exchange fails. When the bus can read back
+        the outputs the gripper holds (an optional ``read_outputs()``, Modbus/TCP), start from them so
+        that opening never fires an edge."""
+        self = cls(exchange, model, poll_interval)
+        read_outputs = getattr(exchange, "read_outputs", None)
+        if read_outputs is not None:
+            try:
+                self.outputs = OutputImage.unpack(await read_outputs())
+            except BaseException:
+                await exchange.close()
+                raise
         return self
 
     async def close(self) -> None:
-        """Close the connection."""
-        self.client.close()
+        """Leave the bus."""
+        await self.exchange.close()
 
     async def __aenter__(self) -> AsyncFieldbusGripper:
         return self
@@ -129,19 +108,23 @@ class AsyncFieldbusGripper:
 
     # --- one bus cycle -------------------------------------------------------------------------
     async def read(self) -> InputImage:
-        """Read input registers 0..5."""
-        rr = await self._call(
-            lambda: self.client.read_input_registers(0, count=INPUT_REGISTERS, device_id=self.device_id))
-        if rr.isError():
-            raise FieldbusError(f"reading input registers failed: {rr}")
-        self.inputs = InputImage.from_registers(list(rr.registers))
+        """Read the 12 input bytes."""
+        try:
+            self.inputs = InputImage.unpack(await self.exchange.read_inputs())
+        except (ConnectionError, ValueError):
+            raise
+        except Exception as exc:   # the bus answered with an error (e.g. a Modbus exception)
+            raise FieldbusError(f"reading the inputs failed: {exc}") from exc
         return self.inputs
 
     async def write(self, image: OutputImage) -> None:
-        """Write holding registers 0..3."""
-        rr = await self._call(lambda: self.client.write_registers(0, image.registers(), device_id=self.device_id))
-        if rr.isError():
-            raise FieldbusError(f"writing holding registers failed: {rr}")
+        """Write the 8 output bytes."""
+        try:
+            await self.exchange.write_outputs(image.pack())
+        except (ConnectionError, ValueError):
+            raise
+        except Exception as exc:
+            raise FieldbusError(f"writing the outputs failed: {exc}") from exc
         self.outputs = image
 
     async def cycle(self, image: OutputImage | None = None) -> InputImage:
@@ -256,12 +239,15 @@ class FieldbusGripper:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 502, *, model: str = "wsg50", device_id: int = 1,
                  timeout: float = 3.0) -> None:
+        """``host`` is a host name for Modbus/TCP on ``port``, or a URL for any bus
+        (``modbus-tcp://HOST:PORT``, ``profinet://IFACE/STATION``, ``profibus://PORT?address=N``)."""
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="fieldbus-gripper", daemon=True)
         self._thread.start()
+        opening = (AsyncFieldbusGripper.open_url(host, model=model, timeout=timeout) if "://" in host else
+                   AsyncFieldbusGripper.open(host, port, model=model, device_id=device_id, timeout=timeout))
         try:
-            self._async = self._run(AsyncFieldbusGripper.open(host, port, model=model, device_id=device_id,
-                                                              timeout=timeout))
+            self._async = self._run(opening)
         except BaseException:
             self._stop_loop()
             raise
@@ -616,3 +602,9 @@ def _gstate_name(stw1: SclBools) -> str:
     """The gripper state named in STW1 (one-hot), as the listing spells it (GRASPING for GRIPPING)."""
     states = [name for name in STW1_BOOLS[:8] if getattr(stw1, name)]
     return states[0] if len(states) == 1 else f"GSTATE={'+'.join(states) or '0'}"
+
+
+__all__ = [
+    "AsyncFieldbusGripper", "CycleConfig", "FieldbusConnectionError", "FieldbusError", "FieldbusGripper",
+    "GrippingCycle", "SclBools", "WsgReceive",
+]

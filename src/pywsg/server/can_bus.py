@@ -7,8 +7,9 @@ full. Requests arrive on ``rx_id`` (default 01h), replies and auto-updates leave
 frames across CAN frames exactly as on a serial line (length from the header, CRC checked); a lost
 or reordered fragment fails the CRC (answered E_CHECKSUM_ERROR like any corrupt frame) and the
 parser resynchronises on the next preamble. Other identifiers, remote and error frames are ignored
-(acceptance filter on the bus, checked again per frame). The driver side is
-:mod:`pywsg.client.can_transport`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
+(acceptance filter on the bus, checked again per frame), and so are CAN FD frames and any frame over
+8 data bytes: the mapping is classic CAN. The driver side is
+:mod:`pywsg.client.can`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
 interface.
 """
 
@@ -20,6 +21,7 @@ from typing import Any
 
 from ..protocol import Frame
 from .device_api import GripperLike
+from .netfault import Shaper, net_faults
 from .scheduler import DeviceRunner
 
 log = logging.getLogger("pywsg.server.can")
@@ -49,6 +51,9 @@ class CanServer:
         self.session: Any = None
         self._bus: Any = None
         self._notifier: Any = None
+        self.net = net_faults(gripper)
+        """Network faults (drop, reorder, garble, latency, silence) on each CAN frame (:mod:`pywsg.server.netfault`)."""
+        self.shaper = Shaper(self.net, self._send_frame, ordered=False)
 
     async def start(self) -> CanServer:
         try:
@@ -74,10 +79,16 @@ class CanServer:
 
     def _on_message(self, msg: Any) -> None:
         if (msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame
-                or msg.is_extended_id):
+                or msg.is_extended_id or getattr(msg, "is_fd", False) or len(msg.data) > 8):
             self.foreign += 1
             return
-        replies = self.gripper.feed(self.session, bytes(msg.data))
+        data = bytes(msg.data)
+        net = self.net
+        if net.active:
+            if net.swallow(data) or net.lose():
+                return  # a silent gripper, or a CAN frame lost (the request's CRC then fails)
+            data = net.garble_bytes(data)
+        replies = self.gripper.feed(self.session, data)
         for frame in replies:
             self._send(frame.encode())
 
@@ -85,20 +96,30 @@ class CanServer:
         self._send(frame.encode())
 
     def _send(self, data: bytes) -> None:
+        if self._bus is None:
+            return
+        shaped = self.net.active or self.shaper.busy
+        for i in range(0, len(data), 8):
+            if shaped:  # network faults act on each CAN frame: one lost or late fragment spoils the reply
+                self.shaper.send(data[i : i + 8])
+            elif not self._send_frame(data[i : i + 8]):
+                return
+
+    def _send_frame(self, chunk: bytes) -> bool:
         import can
 
         bus = self._bus
         if bus is None:
-            return
-        for i in range(0, len(data), 8):
-            msg = can.Message(arbitration_id=self.tx_id, data=data[i : i + 8], is_extended_id=False)
-            try:
-                bus.send(msg)
-            except can.CanError as exc:
-                log.debug("can %s: send failed: %s", self.channel, exc)
-                return
+            return False
+        try:
+            bus.send(can.Message(arbitration_id=self.tx_id, data=chunk, is_extended_id=False))
+        except can.CanError as exc:
+            log.debug("can %s: send failed: %s", self.channel, exc)
+            return False
+        return True
 
     async def close(self) -> None:
+        self.shaper.close()
         if self._notifier is not None:
             self._notifier.stop()
             self._notifier = None

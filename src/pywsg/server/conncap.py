@@ -6,6 +6,10 @@ port included - fails to accept. So each capped server refuses (accepts and at o
 connection beyond its own cap, and any capped server refuses once the process's open descriptors come
 within :data:`FD_RESERVE` of the soft limit: that reserve keeps the command interface (capped at 16
 per gripper by :class:`~pywsg.server.limits.Limits`) and the process's own files working.
+
+A cap alone lets a few silent peers hold every slot, so each capped connection also has an idle
+timeout (:class:`IdleWatch`): no data either way for that long and it is closed. A polling Modbus
+master, a browser page loading, a WebSocket the server pushes to are never idle.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ import asyncio
 import functools
 import logging
 import os
+import socket
+import struct
 from collections.abc import Callable
 from typing import Any
 
@@ -57,6 +63,92 @@ class Refuse(asyncio.Protocol):
         transport.abort()  # type: ignore[attr-defined]
 
 
+_TCP_INFO = getattr(socket, "TCP_INFO", None)
+
+
+def _since_sent(transport: Any) -> float | None:
+    """Seconds since data last left this socket (Linux ``TCP_INFO`` ``tcpi_last_data_sent``), None
+    where unknown: the server's own pushes (WebSocket updates) count as activity too."""
+    sock = transport.get_extra_info("socket")
+    if _TCP_INFO is None or sock is None:
+        return None
+    try:
+        info = sock.getsockopt(socket.IPPROTO_TCP, _TCP_INFO, 104)
+    except OSError:
+        return None
+    if len(info) < 48:
+        return None
+    (sent_ms,) = struct.unpack_from("=I", info, 44)  # after 8 bytes of u8 fields and 9 u32s
+    return float(sent_ms) / 1000.0
+
+
+class IdleWatch:
+    """Closes ``transport`` after ``timeout`` s without data received (:meth:`touch`) or sent.
+
+    One timer per connection, re-armed for the remaining time only when it fires: a busy connection
+    costs one call per ``timeout``, not one per read. ``timeout`` 0 or None: never.
+    """
+
+    def __init__(self, name: str, transport: Any, timeout: float | None) -> None:
+        self.name = name
+        self.transport = transport
+        self.timeout = timeout
+        self.loop = asyncio.get_running_loop()
+        self.last = self.loop.time()
+        self._timer: asyncio.TimerHandle | None = None
+        if timeout:
+            self._timer = self.loop.call_later(timeout, self._check)
+
+    def touch(self) -> None:
+        self.last = self.loop.time()
+
+    def _check(self) -> None:
+        assert self.timeout
+        idle = self.loop.time() - self.last
+        sent = _since_sent(self.transport)
+        if sent is not None:
+            idle = min(idle, sent)
+        if idle < self.timeout:
+            self._timer = self.loop.call_later(self.timeout - idle, self._check)
+            return
+        self._timer = None
+        log.info("%s: closing a connection idle for %.0f s", self.name, idle)
+        self.transport.close()
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+
+
+def watch_idle(name: str, protocol: Any, timeout: float | None) -> Any:
+    """Give an asyncio ``protocol`` instance an :class:`IdleWatch` (wraps its connection_made,
+    data_received and connection_lost); returns it."""
+    if not timeout:
+        return protocol
+    made, received, lost = protocol.connection_made, protocol.data_received, protocol.connection_lost
+    holder: list[IdleWatch] = []
+
+    def connection_made(transport: Any) -> None:
+        holder.append(IdleWatch(name, transport, timeout))
+        made(transport)
+
+    def data_received(data: bytes) -> None:
+        if holder:
+            holder[0].touch()
+        received(data)
+
+    def connection_lost(exc: Exception | None) -> None:
+        if holder:
+            holder[0].cancel()
+        lost(exc)
+
+    protocol.connection_made = connection_made
+    protocol.data_received = data_received
+    protocol.connection_lost = connection_lost
+    return protocol
+
+
 class Cap:
     """Decides whether a server with ``count()`` open connections may accept another."""
 
@@ -78,14 +170,14 @@ class Cap:
         return False
 
 
-def cap_modbus_server(server: Any, limit: int) -> Cap:
+def cap_modbus_server(server: Any, limit: int, idle_timeout: float | None = None) -> Cap:
     """Cap a pymodbus ``ModbusTcpServer`` before its ``listen()``: new connections beyond ``limit``
-    (or into the descriptor reserve) are refused."""
+    (or into the descriptor reserve) are refused, and one without data for ``idle_timeout`` s is closed."""
     cap = Cap("modbus", limit, lambda: len(server.active_connections))
     accept = server.handle_new_connection
 
     def handle_new_connection() -> Any:
-        return accept() if cap.allow() else Refuse()
+        return watch_idle("modbus", accept(), idle_timeout) if cap.allow() else Refuse()
 
     # pymodbus 3.16 binds the protocol factory into ``call_create`` (a partial of create_server)
     # when the server object is made: swap it there.
@@ -96,9 +188,10 @@ def cap_modbus_server(server: Any, limit: int) -> Cap:
     return cap
 
 
-def capped_http_protocol(limit: int) -> type[asyncio.Protocol]:
+def capped_http_protocol(limit: int, idle_timeout: float | None = None) -> type[asyncio.Protocol]:
     """uvicorn's HTTP protocol (``uvicorn.Config(http=...)``) refusing connections beyond ``limit``
-    open HTTP and WebSocket connections (or into the descriptor reserve)."""
+    open HTTP and WebSocket connections (or into the descriptor reserve), and closing one with no
+    data either way for ``idle_timeout`` s (a WebSocket the server pushes to is not idle)."""
     from uvicorn.protocols.http.auto import AutoHTTPProtocol
 
     base: Any = AutoHTTPProtocol
@@ -107,6 +200,7 @@ def capped_http_protocol(limit: int) -> type[asyncio.Protocol]:
 
     class CappedHTTPProtocol(base):  # type: ignore[misc]
         _refused = False
+        _idle: IdleWatch | None = None
 
         def connection_made(self, transport: Any) -> None:
             conns = self.connections  # uvicorn's set of open HTTP and WebSocket connections
@@ -115,9 +209,18 @@ def capped_http_protocol(limit: int) -> type[asyncio.Protocol]:
                 self._refused = True
                 transport.abort()
                 return
+            if idle_timeout:
+                self._idle = IdleWatch("web", transport, idle_timeout)
             super().connection_made(transport)
 
+        def data_received(self, data: bytes) -> None:
+            if self._idle is not None:
+                self._idle.touch()
+            super().data_received(data)
+
         def connection_lost(self, exc: Exception | None) -> None:
+            if self._idle is not None:
+                self._idle.cancel()
             if not self._refused:
                 super().connection_lost(exc)
 

@@ -27,6 +27,9 @@ class Limits:
     keepalive_idle: int = 5
     """TCP keepalive: seconds idle before the first probe, then 1 s apart, 3 probes (half-open
     connections of a vanished client are closed after ~8 s)."""
+    idle_timeout: float = 60.0
+    """A Modbus/TCP or web connection with no data either way for this many seconds is closed (0:
+    never), so silent peers cannot hold the connection caps."""
     denied_idle: float = 60.0
     """A connection refused control (second TCP client) is closed after this many seconds without data."""
     socket_sndbuf: int | None = None

@@ -395,6 +395,8 @@ class DeviceRunner:
         self.realtime = is_realtime(self.clock) if realtime is None else realtime
         self._native = self.clock is time.monotonic or _is_monotonic_clock(self.clock)
         """The gripper's clock reads time.monotonic itself: due times need no conversion."""
+        rate = getattr(self.clock, "rate", 1.0)
+        self._rate = float(rate) if isinstance(rate, int | float) and rate > 0 else 1.0
         self.polls = 0
         self._entry: int | None = None
         self._entry_when = float("inf")
@@ -429,7 +431,8 @@ class DeviceRunner:
     def _to_monotonic(self, due: float) -> float:
         if self._native:
             return due
-        return time.monotonic() + (due - self.clock())  # same rate, maybe another origin
+        # maybe another origin; a scaled clock (ScaledClock: ``rate`` device seconds per real second)
+        return time.monotonic() + (due - self.clock()) / self._rate
 
     def run(self) -> None:
         """Poll the gripper (sessions' deliver callbacks get the frames) and queue the next due time."""

@@ -24,6 +24,7 @@ from typing import Any
 from ..protocol import Frame
 from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits, droppable
+from .netfault import Shaper, net_faults
 from .scheduler import DeviceRunner
 from .trace import log_replies
 
@@ -59,6 +60,9 @@ class SerialServer:
         self._head_sent = 0  # bytes of the first queued entry already written
         self._writing = False
         self._loop: asyncio.AbstractEventLoop | None = None
+        self.net = net_faults(gripper)
+        """Network faults (garbled bytes, latency, bandwidth, silence; :mod:`pywsg.server.netfault`)."""
+        self.shaper = Shaper(self.net, lambda data: self._send([data]))
 
     async def start(self) -> SerialServer:
         self._loop = asyncio.get_running_loop()
@@ -93,15 +97,27 @@ class SerialServer:
             raise
         if not data:
             return
+        net = self.net
+        if net.active:
+            if net.swallow(data):
+                return  # a silent gripper
+            data = net.garble_bytes(data)  # noise on the line
         replies = self.gripper.feed(self.session, data)
         if replies:
             if log.isEnabledFor(logging.INFO):
                 log_replies(log, f"serial {self.path}", replies)
+            if net.active or self.shaper.busy:
+                for f in replies:
+                    self.shaper.send(f.encode())
+                return
             self._send([f.encode() for f in replies])
 
     def deliver(self, frame: Frame) -> None:
         if droppable(frame.command_id) and self._out_size > self.limits.output_soft:
             self.dropped += 1
+            return
+        if self.net.active or self.shaper.busy:
+            self.shaper.send(frame.encode())
             return
         self._send([frame.encode()])
 
@@ -171,6 +187,7 @@ class SerialServer:
             self._loop.remove_writer(self._fd)
 
     async def close(self) -> None:
+        self.shaper.close()
         if self._loop is not None and self._fd >= 0:
             self._loop.remove_reader(self._fd)
             if self._writing:

@@ -18,9 +18,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import importlib
 import inspect
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -67,6 +69,18 @@ class SimOptions:
     can_bitrate: int = 500_000
     """Bit rate in bit/s for a hardware CAN interface (the virtual bus has none)."""
     modbus_port: int | None = None
+    profinet: str | None = None
+    """Network interface for the PROFINET IO device (needs root or CAP_NET_RAW); None: off."""
+    profinet_name: str | None = None
+    """PROFINET NameOfStation; None: the stored (permanent) one, else unnamed until a DCP Set."""
+    profinet_ip: str | None = None
+    """PROFINET IP suite ``IP/PREFIX`` or ``IP/MASK``; None: the stored one, else none until a DCP Set."""
+    profibus: str | None = None
+    """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
+    profibus_address: int | None = None
+    """Station address 0..125; None: the stored one (Settings → Command Interface), else 7."""
+    profibus_baudrate: int = 19200
+    """Baud rate in bit/s (one the GSD declares; nominal on a pty)."""
     web_port: int | None = None
     settings: Path | None = None
     """Settings file: loaded at start when it exists, saved at a clean stop."""
@@ -97,7 +111,17 @@ def _nth(port: int | None, i: int) -> int | None:
     return port + i
 
 
-async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwargs: Any) -> Any:
+def bind_error(what: str, host: str, port: int, option: str, exc: OSError) -> SimError:
+    """A listening socket that could not be opened: which address, why, and how to pick another port."""
+    why = os.strerror(exc.errno) if exc.errno else str(exc)  # asyncio's bind errors carry a long text
+    text = f"{what}: cannot listen on {host}:{port}: {why}"
+    if exc.errno == errno.EADDRINUSE:
+        text += (f" (another program, perhaps another `wsg sim`, has port {port}): choose another with "
+                 f"{option} PORT, or {option} 0 for any free port")
+    return SimError(text)
+
+
+async def _serve_optional(module: str, func: str, what: str, *args: Any, option: str = "", **kwargs: Any) -> Any:
     """Import ``module.func`` only now (optional extras) and await it with the keywords it takes."""
     try:
         mod = importlib.import_module(module)
@@ -110,6 +134,8 @@ async def _serve_optional(module: str, func: str, what: str, *args: Any, **kwarg
     try:
         return await serve(*args, **kwargs)
     except OSError as exc:
+        if option and len(args) >= 3:  # (gripper, host, port, ...): a listening server
+            raise bind_error(what, str(args[1]), int(args[2]), option, exc) from exc
         raise SimError(f"{what}: {exc.strerror or exc}") from exc
 
 
@@ -135,9 +161,23 @@ class SimGripper:
     serial: SerialServer | None = None
     can: CanServer | None = None
     modbus: Any = None
+    profinet: Any = None
+    profibus: Any = None
+    controller: Any = None   # the one FieldbusController every bus of this gripper feeds
+    """The gripper's one FieldbusController, shared by Modbus/TCP, PROFINET and PROFIBUS."""
     web: Any = None
     modbus_port: int | None = None
     web_port: int | None = None
+
+    def fieldbus_controller(self) -> Any:
+        """The gripper's one :class:`~pywsg.fieldbus.controller.FieldbusController` (``controller``),
+        made when its first bus starts; Modbus/TCP, PROFINET and PROFIBUS adapters all receive it."""
+        if self.controller is None:
+            from ..fieldbus.controller import FieldbusController
+
+            device: Any = self.gripper   # a VirtualGripper (GripperLike is what the transports need)
+            self.controller = FieldbusController(device)
+        return self.controller
 
     @property
     def tcp_port(self) -> int | None:
@@ -176,6 +216,10 @@ class SimGripper:
             out["can"] = self.can.address
         if self.modbus is not None:
             out["modbus"] = f"modbus-tcp://{self.host}:{self.modbus_port}"
+        if self.profinet is not None:
+            out["profinet"] = self.profinet.url()
+        if self.profibus is not None:
+            out["profibus"] = self.profibus.url
         return out
 
     def lines(self) -> list[str]:
@@ -193,6 +237,10 @@ class SimGripper:
             out.append(f"{tag}CAN      {self.can.address} (inferred mapping)")
         if self.modbus is not None:
             out.append(f"{tag}Modbus   modbus-tcp://{self.host}:{self.modbus_port}")
+        if self.profinet is not None:
+            out.append(f"{tag}PROFINET {self.profinet.line()}")
+        if self.profibus is not None:
+            out.append(f"{tag}PROFIBUS {self.profibus.url}")
         if self.web is not None:
             out.append(f"{tag}web      http://{self.host}:{self.web_port}/")
         return out
@@ -286,16 +334,19 @@ class SimServer:
     async def _start_one(self, sg: SimGripper, i: int) -> None:
         opts = self.options
         g, r = sg.gripper, sg.runner
-        try:
-            tcp_port = _nth(opts.tcp_port, i)
-            if tcp_port is not None:
+        tcp_port = _nth(opts.tcp_port, i)
+        if tcp_port is not None:
+            try:
                 sg.tcp = await TcpServer(g, r, opts.host, tcp_port, opts.limits).start()
-            udp_port = _nth(opts.udp_port, i)
-            if udp_port is not None:
+            except OSError as exc:
+                raise bind_error(f"gripper {i}: TCP", opts.host, tcp_port, "--tcp-port", exc) from exc
+        udp_port = _nth(opts.udp_port, i)
+        if udp_port is not None:
+            try:
                 sg.udp = await UdpServer(g, r, opts.host, udp_port, opts.udp_reply_port, opts.limits).start()
-                self._warn_reply_port(sg.udp, i)
-        except OSError as exc:
-            raise SimError(f"gripper {i}: cannot bind on {opts.host}: {exc.strerror or exc}") from exc
+            except OSError as exc:
+                raise bind_error(f"gripper {i}: UDP", opts.host, udp_port, "--udp-port", exc) from exc
+            self._warn_reply_port(sg.udp, i)
         if opts.serial:
             path = opts.serial if opts.serial == "pty" or opts.count == 1 else f"{opts.serial}{i}"
             try:
@@ -310,23 +361,72 @@ class SimServer:
         modbus_port = _nth(opts.modbus_port, i)
         if modbus_port is not None:
             sg.modbus = await _serve_optional(
-                "pywsg.fieldbus.modbus", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
-                max_connections=opts.limits.modbus_connections,
+                "pywsg.fieldbus.modbus.server", "serve_modbus", "the Modbus/TCP server", g, opts.host, modbus_port,
+                option="--modbus-port", controller=sg.fieldbus_controller(),
+                max_connections=opts.limits.modbus_connections, idle_timeout=opts.limits.idle_timeout,
             )
             sg.modbus_port = _bound_port(sg.modbus) or modbus_port
+        if opts.profibus:
+            await self._start_profibus(sg, i)
+        if opts.profinet is not None:
+            sg.profinet = await self._start_profinet(sg, i)
         web_port = _nth(opts.web_port, i)
         if web_port is not None:
             extra: dict[str, Any] = {
                 "sim_info": sg.info(),
-                "fieldbus": getattr(sg.modbus, "controller", None),
+                "fieldbus": sg.controller,
                 "settings_path": str(opts.settings) if opts.settings else None,
                 "max_connections": opts.limits.web_connections,
+                "idle_timeout": opts.limits.idle_timeout,
             }
             extra.update(opts.web_options)
             sg.web = await _serve_optional(
-                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, **extra
+                "pywsg.web.app", "serve_web", "the web interface", g, opts.host, web_port, option="--web-port",
+                **extra
             )
             sg.web_port = _bound_port(sg.web) or web_port
+
+    async def _start_profinet(self, sg: SimGripper, i: int) -> Any:
+        opts = self.options
+        if opts.count > 1:
+            raise SimError("--profinet serves one gripper on one interface: use --count 1")
+        try:
+            from ..fieldbus.profinet import ProfinetError, serve_profinet
+            from ..fieldbus.profinet.station import parse_ip_suite
+        except ImportError as exc:
+            raise SimError(f"PROFINET is not available: {exc}") from exc
+        try:
+            suite = parse_ip_suite(opts.profinet_ip) if opts.profinet_ip else None
+        except ValueError as exc:
+            raise SimError(f"--profinet-ip: {exc}") from None
+        controller = sg.fieldbus_controller()
+        store = None if opts.settings is None else Path(opts.settings).with_name(
+            Path(opts.settings).stem + ".interface.json")   # beside the settings, as the web interface keeps it
+        try:
+            return await serve_profinet(sg.gripper, str(opts.profinet), controller, station_name=opts.profinet_name,
+                                        ip=suite, store_path=store)
+        except ProfinetError as exc:
+            raise SimError(str(exc)) from None
+    async def _start_profibus(self, sg: SimGripper, i: int) -> None:
+        from ..fieldbus.profibus.station import AddressStore
+
+        opts = self.options
+        store = AddressStore.beside(opts.settings)
+        address = opts.profibus_address
+        if address is None:
+            address = store.load() + i
+        line = opts.profibus or "pty"
+        path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
+        from ..fieldbus.profibus.line import ProfibusAdapter
+
+        try:
+            sg.profibus = await ProfibusAdapter(sg.fieldbus_controller(), path, address, opts.profibus_baudrate,
+                                                on_address_change=store.save if i == 0 else None).start()
+        except ValueError as exc:
+            raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
+        except OSError as exc:
+            raise SimError(f"gripper {i}: cannot open PROFIBUS line {path}: {exc}") from exc
+        sg.controller.attach_bus(sg.profibus)
 
     def _warn_reply_port(self, udp: UdpServer, i: int) -> None:
         """A reply port that is a UDP port of this sim: no gripper can answer clients on this host."""
@@ -348,11 +448,15 @@ class SimServer:
         self._started = False
         for sg in self.grippers:
             sg.runner.stop()
-            for part in (sg.web, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
                 if part is None:
                     continue
                 with contextlib.suppress(Exception):
                     await part.close()
+            if sg.controller is not None:   # after its buses: none feeds it any more
+                with contextlib.suppress(Exception):
+                    sg.controller.close()
+                sg.controller = None
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)

@@ -15,14 +15,17 @@ is bounded (see :class:`~pywsg.server.limits.Limits`).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import socket
+import struct
 import time
 from typing import Any, cast
 
 from ..protocol import Frame
 from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits, droppable
+from .netfault import NetFaults, Shaper, net_faults
 from .scheduler import DeviceRunner, Scheduler
 from .trace import log_replies
 
@@ -68,6 +71,10 @@ class TcpConnection(asyncio.Protocol):
         self._paused = False
         self._backlog = b""
         """Read bytes not parsed yet: a big read is parsed one slice per loop turn (see data_received)."""
+        self.net: NetFaults = server.net
+        self.shaper = Shaper(self.net, self._write)
+        """Network faults (latency, bandwidth, slicer, silence; :mod:`pywsg.server.netfault`) on the replies."""
+        self._net_timer: asyncio.TimerHandle | None = None
 
     # -- asyncio.Protocol ------------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -90,8 +97,14 @@ class TcpConnection(asyncio.Protocol):
         else:
             srv.controller = self
             log.info("tcp %s: connected (controls the gripper)", self.peer)
+        if self.net.active:
+            srv.net_rules(self)
 
     def data_received(self, data: bytes) -> None:
+        if self.net.active:
+            if self.net.swallow(data):
+                return  # a silent gripper: the request is never executed
+            data = self.net.garble_bytes(data)
         if self.refused:  # only refused clients are reaped when silent
             self.last_rx = time.monotonic()
         if self._backlog:
@@ -128,14 +141,50 @@ class TcpConnection(asyncio.Protocol):
             t = self.transport
             if t is None or t.is_closing():
                 return
-            t.write(replies[0].encode() if len(replies) == 1 else b"".join([f.encode() for f in replies]))
+            self.shaper.send(replies[0].encode() if len(replies) == 1 else b"".join([f.encode() for f in replies]))
             if t.get_write_buffer_size() > self.server.limits.output_hard:
                 self._close_unread(t)
+
+    def _write(self, data: bytes) -> None:
+        t = self.transport
+        if t is not None and not t.is_closing():
+            t.write(data)
+
+    def reset(self) -> None:
+        """Reset the connection (RST, "connection reset by peer" at the client)."""
+        t = self.transport
+        if t is None or t.is_closing():
+            return
+        sock = t.get_extra_info("socket")
+        if sock is not None:
+            with contextlib.suppress(OSError):  # linger 0: close() sends RST instead of FIN
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        self.net.counts["reset"] += 1
+        log.info("tcp %s: reset (network fault)", self.peer)
+        t.abort()
+
+    def close_later(self, delay: float, reset: bool) -> None:
+        """Reset (or close) this connection ``delay`` s from now (network faults reset, silent)."""
+        if self._net_timer is not None:
+            self._net_timer.cancel()
+        loop = asyncio.get_running_loop()
+        fn = self.reset if reset else self._close_quietly
+        self._net_timer = loop.call_later(delay, fn) if delay > 0 else None
+        if delay <= 0:
+            fn()
+
+    def _close_quietly(self) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            log.info("tcp %s: closed by the gripper", self.peer)
+            self.transport.close()
 
     def connection_lost(self, exc: Exception | None) -> None:
         srv = self.server
         srv.connections.discard(self)
         self._out.clear()
+        self.shaper.close()
+        if self._net_timer is not None:
+            self._net_timer.cancel()
         if srv.controller is self:
             srv.controller = None
         session, self.session = self.session, None
@@ -192,7 +241,7 @@ class TcpConnection(asyncio.Protocol):
             if not kept:
                 return
             out = kept
-        t.write(out[0].encode() if len(out) == 1 else b"".join([f.encode() for f in out]))
+        self.shaper.send(out[0].encode() if len(out) == 1 else b"".join([f.encode() for f in out]))
         if t.get_write_buffer_size() > self.server.limits.output_hard:
             self._close_unread(t)
 
@@ -222,6 +271,8 @@ class TcpServer:
         self._server: asyncio.Server | None = None
         self._reaper: asyncio.Task[None] | None = None
         self.port = 0
+        self.net = net_faults(gripper)
+        """This gripper's network faults (shared with its UDP and serial interfaces)."""
 
     @property
     def scheduler(self) -> Scheduler | None:
@@ -234,7 +285,24 @@ class TcpServer:
         )
         self.port = self._server.sockets[0].getsockname()[1]
         self._reaper = loop.create_task(self._reap_idle_refused())
+        self.net.listeners.append(self._on_net)
         return self
+
+    def _on_net(self, what: str) -> None:
+        """A network fault was switched on (``reset``, ``silent``) or the gripper interrupts (``interrupt``)."""
+        for conn in list(self.connections):
+            if what == "interrupt":
+                conn.close_later(0, reset=False)
+            else:
+                self.net_rules(conn)
+
+    def net_rules(self, conn: TcpConnection) -> None:
+        """Apply reset / silent-with-close to ``conn`` (just connected, or a fault just switched on)."""
+        s = self.net.s
+        if s.reset is not None:
+            conn.close_later(s.reset, reset=True)
+        elif s.silent and s.close_after:
+            conn.close_later(s.close_after, reset=False)
 
     async def _reap_idle_refused(self) -> None:
         # refused second clients that stay silent are closed; the controller is kept (keepalive covers it)
@@ -251,6 +319,8 @@ class TcpServer:
         return f"tcp://{self.host}:{self.port}"
 
     async def close(self) -> None:
+        with contextlib.suppress(ValueError):
+            self.net.listeners.remove(self._on_net)
         if self._reaper is not None:
             self._reaper.cancel()
             try:

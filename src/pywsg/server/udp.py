@@ -29,6 +29,7 @@ from typing import Any, cast
 from ..protocol import CATALOG, PREAMBLE, Frame, Status
 from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits, droppable
+from .netfault import Shaper, net_faults
 from .scheduler import DeviceRunner
 from .trace import log_replies
 
@@ -95,6 +96,13 @@ class UdpServer(asyncio.DatagramProtocol):
         self.ignored = 0
         """Datagrams not answered to prevent a reply loop (module doc)."""
         self._registered = False
+        self.net = net_faults(gripper)
+        """Network faults (drop, reorder, latency, silence; :mod:`pywsg.server.netfault`)."""
+        self.shaper = Shaper(self.net, self._sendto, ordered=False)
+
+    def _sendto(self, data: bytes) -> None:
+        if self.transport is not None and self.client is not None:
+            self.transport.sendto(data, self.client)
 
     async def start(self) -> UdpServer:
         loop = asyncio.get_running_loop()
@@ -142,11 +150,20 @@ class UdpServer(asyncio.DatagramProtocol):
         if looks_like_reply(data):
             self._ignore("a reply frame", (str(addr[0]), int(addr[1])))
             return
+        net = self.net
+        if net.active:
+            if net.swallow(data) or net.lose():
+                return  # silent gripper, or the request datagram lost on the way
+            data = net.garble_bytes(data)
         replies = self.gripper.handle_datagram(self.session, data)
         if replies and log.isEnabledFor(logging.INFO):
             log_replies(log, f"udp {addr[0]}:{addr[1]}", replies)
         t = self.transport
         if t is None:
+            return
+        if net.active or self.shaper.busy:
+            for frame in replies:
+                self.shaper.send(frame.encode())
             return
         for frame in replies:
             t.sendto(frame.encode(), self.client)
@@ -165,6 +182,9 @@ class UdpServer(asyncio.DatagramProtocol):
         if droppable(frame.command_id) and _buffered(t) > self.limits.output_soft:
             self.dropped += 1
             return
+        if self.net.active or self.shaper.busy:
+            self.shaper.send(frame.encode())
+            return
         t.sendto(frame.encode(), self.client)
 
     async def close(self) -> None:
@@ -176,6 +196,7 @@ class UdpServer(asyncio.DatagramProtocol):
         if self.session is not None:
             self.gripper.close_session(self.session)
             self.session = None
+        self.shaper.close()
         if self.transport is not None:
             self.transport.close()
             await asyncio.sleep(0)

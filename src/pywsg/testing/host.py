@@ -26,12 +26,13 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any, TypeVar
 
-from ..device import ManualClock, Settings, VirtualGripper
+from ..device import ManualClock, ScaledClock, Settings, VirtualGripper
 from ..server.sim import SimGripper, SimOptions, SimServer
+from .replay import ReplayReport, replay
 from .scenario import Scenario, ScenarioRunner, drive_realtime, tap
 from .world import apply, world_state
 
-__all__ = ["LoopThread", "SimThread", "World", "setup_world"]
+__all__ = ["CellGripper", "LoopThread", "SimThread", "World", "setup_world"]
 
 S = TypeVar("S", bound="SimThread")
 T = TypeVar("T")
@@ -84,9 +85,11 @@ class World:
         g = self._host.sim.grippers[self._index].gripper
         return self._host.call(lambda: apply(g, action, params))
 
-    def place_part(self, width: float, stiffness: float | None = None) -> str:
-        """Put a part of ``width`` mm between the fingers (``stiffness`` N/mm, default a firm plastic part)."""
-        return self._apply("part", width=width, stiffness=stiffness)
+    def place_part(self, width: float, stiffness: float | None = None, inside: bool = False) -> str:
+        """Put a part of ``width`` mm in the gripper: between the fingers, gripped from outside (the
+        default), or with ``inside=True`` a ring around them, gripped from inside. ``stiffness`` N/mm
+        (default rigid: a held part reads its own width)."""
+        return self._apply("part", width=width, stiffness=stiffness, inside=inside)
 
     def remove_part(self) -> str:
         """Take the part away (while HOLDING: the part is lost)."""
@@ -99,12 +102,31 @@ class World:
     def unblock(self) -> str:
         return self._apply("unblock")
 
-    def fault(self, kind: str, on: bool = True, finger: int | None = None) -> str:
-        """Switch a fault on or off: ``kind`` power, current or finger (``finger`` 1 or 2)."""
+    def fault(self, kind: str, on: bool = True, finger: int | None = None, timeout: float | None = None) -> str:
+        """Switch a fault on or off: ``kind`` power, current, finger (over-current, ``finger`` 1 or 2),
+        ack (acknowledge refused), watchdog (FAST STOP ``timeout`` s without a request) or unplugged
+        (``finger`` 1 or 2); what each reports: docs/testing.md, "World faults"."""
         params: dict[str, Any] = {"kind": kind, "on": on}
         if finger is not None:
             params["finger"] = finger
+        if timeout is not None:
+            params["timeout"] = timeout
         return self._apply("fault", **params)
+
+    def slip(self, duration: float = 1.0) -> str:
+        """The part slides out of the fingers; ``duration`` s (gripper clock) later it is gone (PART LOST)."""
+        return self._apply("slip", duration=duration)
+
+    def disconnect(self) -> str:
+        """The gripper closes its TCP connections (FIN); the sessions end without 07h: FAST STOP."""
+        return self._apply("disconnect")
+
+    def net(self, kind: str, on: bool = True, **params: Any) -> str:
+        """Switch a network fault on (with its parameters) or off, at once, on every interface of this
+        gripper: ``latency`` (ms, jitter ms), ``bandwidth`` (rate bytes/s), ``slicer`` (size bytes, gap
+        ms), ``reset`` (timeout s), ``silent`` (timeout s), ``drop`` / ``reorder`` / ``garble`` (p);
+        ``kind="clear"``: all off. See :mod:`pywsg.server.netfault`."""
+        return self._apply("net", kind=kind, on=on, **params)
 
     def heat(self, delta_c: float) -> str:
         """Raise (or lower) the temperature by ``delta_c`` °C at once."""
@@ -128,9 +150,10 @@ class World:
             raise RuntimeError("advance() needs a manual clock: start the sim with clock='manual'")
         if not dt >= 0:
             raise ValueError("dt: must be a non-negative number of seconds")
-        sg = self._host.sim.grippers[self._index]
-        runner = self._host.scenario_runners.get(self._index)
-        return self._host.call(lambda: _step(sg, clock, clock.now + dt, runner))
+        host = self._host
+        # the grippers of a cell share the clock: every one of them is served up to the new time
+        cell = [(sg, host.scenario_runners.get(sg.index)) for sg in host.sim.grippers]
+        return host.call(lambda: _step_all(cell, clock, clock.now + dt))
 
 
 def _settings_factory(given: dict[str, Any] | Settings) -> Callable[[str, Any, Any], Any]:
@@ -187,22 +210,65 @@ def setup_world(sim: SimServer, *, part: float | None = None, block: float | Non
 
 def _step(sg: SimGripper, clock: ManualClock, end: float, runner: ScenarioRunner | None) -> float:
     """Advance to ``end`` through every due time in between (device events, scenario actions)."""
-    g = sg.gripper
+    return _step_all([(sg, runner)], clock, end)
+
+
+def _step_all(cell: list[tuple[SimGripper, ScenarioRunner | None]], clock: ManualClock, end: float) -> float:
+    """Advance the grippers sharing ``clock`` to ``end`` through every due time of any of them."""
     for _ in range(1_000_000):  # bounded: a due time that never moves cannot spin forever
-        due = g.next_due()
-        t = end if due is None or due > end else max(due, clock.now)
-        if runner is not None:
-            nt = runner.next_time()
+        t = end
+        for sg, runner in cell:
+            due = sg.gripper.next_due()
+            if due is not None and due < t:
+                t = max(due, clock.now)
+            nt = runner.next_time() if runner is not None else None
             if nt is not None and nt < t:
                 t = max(nt, clock.now)
         clock.set(t)
-        sg.runner.poll_now()
-        if runner is not None:
-            runner.run_due(t)
-            runner.observe(t)
+        for sg, runner in cell:
+            sg.runner.poll_now()
+            if runner is not None:
+                runner.run_due(t)
+                runner.observe(t)
         if t >= end:
             break
     return clock.now
+
+
+IDLE_STEP = 0.05
+"""Seconds a manual clock moves on while a replayed request waits for its reply."""
+
+
+class CellGripper:
+    """One gripper of a :class:`SimThread` (``sim[i]``): its addresses and its world."""
+
+    def __init__(self, host: SimThread, index: int) -> None:
+        self.index = index
+        self.sim_gripper: SimGripper = host.sim.grippers[index]
+        self.world = World(host, index)
+
+    @property
+    def url(self) -> str:
+        """``tcp://127.0.0.1:PORT`` of this gripper."""
+        url = self.sim_gripper.tcp_url
+        if url is None:
+            raise RuntimeError("TCP is off (tcp_port=None)")
+        return url
+
+    @property
+    def udp_url(self) -> str:
+        url = self.sim_gripper.udp_url
+        if url is None:
+            raise RuntimeError("UDP is off (udp_port=None)")
+        return url
+
+    @property
+    def gripper(self) -> Any:
+        """The :class:`~pywsg.device.VirtualGripper` (touch it only through ``SimThread.call``)."""
+        return self.sim_gripper.gripper
+
+    def __repr__(self) -> str:
+        return f"<gripper {self.index} {self.sim_gripper.tcp_url or self.sim_gripper.udp_url}>"
 
 
 class SimThread:
@@ -215,6 +281,9 @@ class SimThread:
       fields (``{"crc_check": False}``) applied to the defaults;
     - ``clock="manual"``: a :class:`~pywsg.device.ManualClock` (time moves only with
       ``world.advance(dt)``); a clock object is taken as it is; default real time;
+    - ``time_scale=K``: real time run K times faster (:class:`~pywsg.device.ScaledClock`): motion,
+      homing, heat, auto-update periods and scenarios; the network and client timeouts are not scaled;
+    - ``count=N``: a cell of N grippers, each with its own world (``sim[i].url``, ``sim[i].world``);
     - ``scenario``: a TOML file or :class:`~pywsg.testing.scenario.Scenario` run on every gripper;
     - ``loop``: a shared :class:`LoopThread` (default: one of its own, closed by :meth:`stop`).
     """
@@ -228,6 +297,13 @@ class SimThread:
             overrides["settings"] = None
             overrides["factory"] = _settings_factory(settings)
         clock = overrides.get("clock")
+        scale = overrides.pop("time_scale", None)
+        if scale is not None:
+            if clock is not None:
+                raise ValueError("time_scale and clock: give one (the manual clock has no time scale)")
+            if isinstance(scale, bool) or not isinstance(scale, int | float) or not 0 < scale < float("inf"):
+                raise ValueError(f"time_scale: must be a positive number, not {scale!r}")
+            overrides["clock"] = clock = ScaledClock(scale) if scale != 1 else None
         if clock == "manual":
             overrides["clock"] = ManualClock()
         elif isinstance(clock, str):
@@ -296,6 +372,51 @@ class SimThread:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
+    # -- the cell --------------------------------------------------------------------------------
+    @property
+    def grippers(self) -> list[CellGripper]:
+        """Every gripper of this sim (``count=N``), each with its addresses and its own world."""
+        return [CellGripper(self, i) for i in range(len(self.sim.grippers))]
+
+    def __getitem__(self, i: int) -> CellGripper:
+        return CellGripper(self, range(len(self.sim.grippers))[i])
+
+    def __len__(self) -> int:
+        return len(self.sim.grippers)
+
+    # -- record once, test forever ---------------------------------------------------------------
+    def replay(self, recording: str | Path, tolerance: float = 0.5, timeout: float = 10.0,
+               index: int = 0, udp: bool = False) -> ReplayReport:
+        """Replay the client side of ``recording`` (``wsg proxy --pcap/--jsonl``, Wireshark) against
+        gripper ``index`` and compare the replies (:func:`pywsg.testing.replay.replay`). On a manual
+        clock, time moves on by itself while a reply is awaited (a motion's final reply)."""
+        sg = self.sim.grippers[index]
+        url = sg.udp_url if udp else sg.tcp_url
+        if url is None:
+            raise RuntimeError(f"gripper {index}: {'UDP' if udp else 'TCP'} is off")
+        idle = None
+        if self.clock is not None:
+            world = World(self, index)
+
+            def idle() -> None:
+                world.advance(IDLE_STEP)
+
+        return replay(recording, url, tolerance, timeout, idle=idle)
+
+    def assert_replays(self, recording: str | Path, tolerance: float = 0.5, timeout: float = 10.0,
+                       index: int = 0, udp: bool = False) -> ReplayReport:
+        """:meth:`replay`, then fail (AssertionError listing every difference) unless all replies matched::
+
+            def test_field_session(wsg_sim):
+                wsg_sim.assert_replays("captures/line3-monday.pcapng")
+        """
+        report = self.replay(recording, tolerance, timeout, index, udp)
+        if not report.matched:
+            lines = "\n".join(d.line() for d in report.differences)
+            raise AssertionError(f"{recording}: {len(report.differences)} difference(s) from the recording "
+                                 f"({report.steps} request(s)):\n{lines}")
+        return report
+
     # -- addresses of gripper 0 ----------------------------------------------------------------
     @property
     def g(self) -> SimGripper:
@@ -348,7 +469,7 @@ class SimThread:
         """The Modbus/TCP fieldbus port on 127.0.0.1, started on first use."""
         sg = self._sg
         if sg.modbus is None:
-            from ..fieldbus.modbus import serve_modbus
+            from ..fieldbus.modbus.server import serve_modbus
 
             async def _open() -> None:
                 sg.modbus = await serve_modbus(sg.gripper, sg.host, 0)

@@ -2,85 +2,63 @@
 
 Bytes are forwarded unchanged and in order the moment they arrive (forwarding comes first, decoding
 after), so the client and the gripper cannot tell the tap is there. Each complete frame is handed to
-a :class:`~pywsg.cli.commlog.CommLog` (one decoded line per frame: time, TX/RX, command, status,
+a :class:`~pywsg.capture.commlog.CommLog` (one decoded line per frame: time, TX/RX, command, status,
 fields) and can be written to a pcapng file (readable by ``wsg decode -f``, ``wsg replay`` and
 Wireshark) as synthetic IPv4 packets between the client's and the gripper's real addresses.
 
 TCP: every client connection gets its own connection to the gripper (the gripper sees one client
-per proxied client, as the command manual's single-client rule expects). UDP: datagrams from each
-client address go out from a socket of their own; the gripper's replies go back to that client
-address. For a gripper that replies to a fixed port (factory setting 1501) give ``?reply_port=1501``
-in the target URL: the upstream socket is bound to that local port.
+per proxied client, as the command manual's single-client rule expects). A half-close passes
+through both ways, and replies still in flight when a client goes are still captured (the gripper
+side is kept :data:`CLOSE_GRACE_S` for them). UDP: datagrams from each client address go out from a
+socket of their own (at most :data:`UDP_UPSTREAMS`, each closed after ``udp_idle`` s without
+traffic); the gripper's replies go back to that client address. For a gripper that replies to a
+fixed port (factory setting 1501) give ``?reply_port=1501`` in the target URL: one upstream socket
+bound to that local port carries every client's datagrams, and a reply goes to the client whose
+request with that command ID is the oldest unanswered one (else to the last client heard).
+
+Bounds, like the sim's (docs/sim.md "Bounds"): at most :data:`HIGH_WATER` bytes wait to be sent to
+either side before reading from the other pauses (backpressure both ways); decoding runs in chunks
+on a task of its own (other clients never wait for a flood to be decoded), and reading pauses while
+:data:`DECODE_BACKLOG` bytes wait for it. The capture is streamed to disk; the comm log gets at most
+``log_rate`` frames a second (a line each second says what was left out; the pcapng has every byte),
+and stream problems (bad checksums, garbage) are one summary note per chunk, so logging costs a
+small factor of the traffic whatever it is sent.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import socket
-import threading
+import struct
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Literal, cast
+from typing import Any, Literal, cast
 
-import dpkt
-
-from ..cli.commlog import CommLog, TxRx
+from ..capture.commlog import CommLog, TxRx
+from ..capture.pcap import PcapWriter
 from ..client.url import parse_url
 from ..protocol import ChecksumMismatch, Frame, FrameParser, GarbageSkipped
 from ..protocol.parser import parse_datagram
+from ..server.netfault import NetFaults, Shaper
 
 __all__ = ["PcapWriter", "Proxy", "ProxyStats"]
 
 Transport = Literal["tcp", "udp"]
 
-
-class PcapWriter:
-    """Writes the proxied exchange as raw-IPv4 pcapng (link type 101) with TCP sequence numbers."""
-
-    def __init__(self, path: str | Path) -> None:
-        self._f: BinaryIO = open(path, "wb")  # noqa: SIM115 - closed in close()
-        self._w = dpkt.pcapng.Writer(self._f, snaplen=65535, linktype=dpkt.pcap.DLT_RAW)
-        self._seq: dict[tuple[str, int, str, int], int] = {}
-        self._lock = threading.Lock()
-
-    @staticmethod
-    def _ip(src: tuple[str, int], dst: tuple[str, int], l4: Any, proto: int) -> bytes:
-        ip = dpkt.ip.IP(src=socket.inet_aton(src[0]), dst=socket.inet_aton(dst[0]), p=proto, ttl=64, data=l4)
-        ip.len = len(ip)
-        return bytes(ip)
-
-    def _write(self, pkt: bytes, ts: float) -> None:
-        with self._lock:
-            self._w.writepkt(pkt, ts=ts)
-            self._f.flush()
-
-    def tcp_open(self, client: tuple[str, int], server: tuple[str, int], ts: float) -> None:
-        """A SYN from the client: ``wsg decode -f`` then knows which side is the gripper."""
-        self._seq[client + server] = 1001
-        self._seq[server + client] = 5001
-        syn = dpkt.tcp.TCP(sport=client[1], dport=server[1], seq=1000, flags=dpkt.tcp.TH_SYN)
-        self._write(self._ip(client, server, syn, dpkt.ip.IP_PROTO_TCP), ts)
-
-    def tcp(self, src: tuple[str, int], dst: tuple[str, int], data: bytes, ts: float) -> None:
-        key = src + dst
-        seq = self._seq.get(key, 1)
-        self._seq[key] = (seq + len(data)) % (1 << 32)
-        seg = dpkt.tcp.TCP(sport=src[1], dport=dst[1], seq=seq, flags=dpkt.tcp.TH_ACK | dpkt.tcp.TH_PUSH,
-                           data=data)
-        self._write(self._ip(src, dst, seg, dpkt.ip.IP_PROTO_TCP), ts)
-
-    def udp(self, src: tuple[str, int], dst: tuple[str, int], data: bytes, ts: float) -> None:
-        dg = dpkt.udp.UDP(sport=src[1], dport=dst[1], data=data)
-        dg.ulen = len(dg)
-        self._write(self._ip(src, dst, dg, dpkt.ip.IP_PROTO_UDP), ts)
-
-    def close(self) -> None:
-        with self._lock:
-            self._f.close()
-
-
+HIGH_WATER = 64 * 1024
+"""Bytes buffered toward one side at which reading from the other side pauses."""
+DECODE_BACKLOG = 1024 * 1024
+"""Bytes waiting to be decoded at which reading from that side pauses."""
+DECODE_CHUNK = 8 * 1024
+"""Bytes decoded per turn of the event loop."""
+CLOSE_GRACE_S = 2.0
+"""How long the gripper side stays open for replies in flight after its client has gone (s)."""
+UDP_UPSTREAMS = 256
+"""Upstream UDP sockets (one per client address) at most; the least recently used one goes first."""
 @dataclass
 class ProxyStats:
     """Counters of one proxy run."""
@@ -88,33 +66,136 @@ class ProxyStats:
     connections: int = 0
     frames: dict[str, int] = field(default_factory=lambda: {"tx": 0, "rx": 0})
     bytes: dict[str, int] = field(default_factory=lambda: {"tx": 0, "rx": 0})
+    not_logged: int = 0  # frames over the log rate (in the pcapng, not in the comm log)
+
+
+class _LogGate:
+    """At most ``rate`` comm-log entries a second for the whole proxy; what is left out is one line a
+    second per direction (``0``: no limit)."""
+
+    def __init__(self, log: CommLog | None, rate: int, stats: ProxyStats) -> None:
+        self.log = log
+        self.rate = rate
+        self.stats = stats
+        self.window = 0.0
+        self.used = 0
+        self.skipped: dict[TxRx, collections.Counter[str]] = {"tx": collections.Counter(),
+                                                             "rx": collections.Counter()}
+
+    def allow(self, direction: TxRx, what: str) -> bool:
+        if self.log is None:
+            return False
+        if not self.rate:
+            return True
+        now = time.monotonic()
+        if now - self.window >= 1.0:
+            self.summary()
+            self.window, self.used = now, 0
+        if self.used < self.rate:
+            self.used += 1
+            return True
+        self.skipped[direction][what] += 1
+        self.stats.not_logged += 1
+        return False
+
+    def summary(self) -> None:
+        """Write the 'not logged' lines for the window just ended."""
+        if self.log is None:
+            return
+        for direction, counts in self.skipped.items():
+            if counts:
+                total = sum(counts.values())
+                top = ", ".join(f"{k} x{n}" for k, n in counts.most_common(4))
+                self.log.note(direction, f"{total} frame(s) not logged (over {self.rate}/s; the pcapng has "
+                                         f"them): {top}")
+                counts.clear()
 
 
 class _Decoder:
-    """Frames out of one direction of one connection, into the comm log."""
+    """Frames out of one direction of one connection, into the comm log.
 
-    def __init__(self, log: CommLog | None, direction: TxRx, stats: ProxyStats) -> None:
+    Decodes on a task of its own, :data:`DECODE_CHUNK` bytes per loop turn, so a flood never holds up
+    the loop; ``hold(True)`` is called while :data:`DECODE_BACKLOG` bytes wait (the caller pauses
+    reading), ``hold(False)`` once half of it is done.
+    """
+
+    def __init__(self, proxy: Proxy, direction: TxRx, hold: Callable[[bool], None] | None = None) -> None:
         self.parser = FrameParser(verify_checksum=True)
-        self.log = log
-        self.direction = direction
-        self.stats = stats
+        self.proxy = proxy
+        self.direction: TxRx = direction
+        self.stats = proxy.stats
+        self.hold = hold
+        self.backlog: collections.deque[tuple[bytes, bool]] = collections.deque()
+        self.waiting = 0
+        self.held = False
+        self.dropped = 0  # datagrams not decoded: the backlog was full (UDP cannot pause)
+        self.task: asyncio.Task[None] | None = None
 
     def feed(self, data: bytes, datagram: bool = False) -> None:
         self.stats.bytes[self.direction] += len(data)
-        events = parse_datagram(data) if datagram else self.parser.feed(data)
+        if self.waiting >= DECODE_BACKLOG and self.hold is None:
+            self.dropped += 1
+            return
+        self.backlog.append((data, datagram))
+        self.waiting += len(data)
+        if self.waiting >= DECODE_BACKLOG and self.hold is not None and not self.held:
+            self.held = True
+            self.hold(True)
+        if self.task is None:
+            self.task = asyncio.get_running_loop().create_task(self._run())
+            self.proxy._tasks.add(self.task)
+            self.task.add_done_callback(self.proxy._tasks.discard)
+
+    async def _run(self) -> None:
+        try:
+            while self.backlog:
+                data, datagram = self.backlog.popleft()
+                if datagram:
+                    self._events(parse_datagram(data))
+                else:
+                    for i in range(0, len(data), DECODE_CHUNK):
+                        self._events(self.parser.feed(data[i : i + DECODE_CHUNK]))
+                        if len(data) > DECODE_CHUNK:
+                            await asyncio.sleep(0)
+                self.waiting -= len(data)
+                if self.held and self.waiting <= DECODE_BACKLOG // 2 and self.hold is not None:
+                    self.held = False
+                    self.hold(False)
+                await asyncio.sleep(0)
+        finally:
+            self.task = None
+
+    async def drain(self) -> None:
+        """Wait until everything fed so far is decoded."""
+        while self.task is not None:
+            await asyncio.sleep(0)
+
+    def _events(self, events: list[Any]) -> None:
+        gate, log, direction = self.proxy.gate, self.proxy.log, self.direction
+        bad = garbage = other = 0
+        first = ""
         for ev in events:
             if isinstance(ev, Frame):
-                self.stats.frames[self.direction] += 1
-                if self.log is not None:
-                    self.log.record(self.direction, ev)
-            elif self.log is not None:
-                if isinstance(ev, ChecksumMismatch):
-                    msg = f"{ev.command_id:02X}h checksum wrong: {ev.received:04X}h, expected {ev.expected:04X}h"
-                elif isinstance(ev, GarbageSkipped):
-                    msg = f"{ev.count} byte(s) outside any frame"
-                else:
-                    msg = type(ev).__name__
-                self.log.note(self.direction, msg)
+                self.stats.frames[direction] += 1
+                if log is not None and gate.allow(direction, f"{ev.command_id:02X}h"):
+                    log.record(direction, ev)
+            elif isinstance(ev, ChecksumMismatch):
+                bad += 1
+                first = first or (f"first {ev.command_id:02X}h: {ev.received:04X}h, expected {ev.expected:04X}h")
+            elif isinstance(ev, GarbageSkipped):
+                garbage += ev.count
+            else:
+                other += 1
+                first = first or type(ev).__name__
+        if (bad or garbage or other) and log is not None and gate.allow(direction, "stream problems"):
+            parts = []
+            if bad:
+                parts.append(f"{bad} frame(s) with a wrong checksum")
+            if garbage:
+                parts.append(f"{garbage} byte(s) outside any frame")
+            if other:
+                parts.append(f"{other} other problem(s)")
+            log.note(direction, ", ".join(parts) + (f" ({first})" if first else ""))
 
 
 class _Upstream(asyncio.Protocol):
@@ -126,8 +207,18 @@ class _Upstream(asyncio.Protocol):
     def data_received(self, data: bytes) -> None:
         self.pipe.from_gripper(data)
 
+    def eof_received(self) -> bool:
+        self.pipe.gripper_eof()
+        return True
+
+    def pause_writing(self) -> None:  # the gripper is slow to read: stop reading the client
+        self.pipe.hold_client("upstream full", True)
+
+    def resume_writing(self) -> None:
+        self.pipe.hold_client("upstream full", False)
+
     def connection_lost(self, exc: Exception | None) -> None:
-        self.pipe.close()
+        self.pipe.upstream_lost()
 
 
 class _Pipe(asyncio.Protocol):
@@ -137,11 +228,18 @@ class _Pipe(asyncio.Protocol):
         self.proxy = proxy
         self.client: asyncio.Transport | None = None
         self.upstream: asyncio.Transport | None = None
-        self.early: list[bytes] = []
-        self.tx = _Decoder(proxy.log, "tx", proxy.stats)
-        self.rx = _Decoder(proxy.log, "rx", proxy.stats)
+        self.tx = _Decoder(proxy, "tx", lambda on: self.hold_client("decoding", on))
+        self.rx = _Decoder(proxy, "rx", lambda on: self.hold_upstream("decoding", on))
         self.peer: tuple[str, int] = ("0.0.0.0", 0)
         self.closed = False
+        self.client_gone = False
+        self.client_eof = False
+        self.gripper_eofd = False
+        self._client_holds: set[str] = {"connecting"}
+        self._upstream_holds: set[str] = set()
+        self.shaper = Shaper(proxy.net, self._to_client)
+        """Network faults on the gripper's bytes toward the client (after the tap: the capture has them as sent)."""
+        self._net_timer: asyncio.TimerHandle | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -150,10 +248,15 @@ class _Pipe(asyncio.Protocol):
         sock = transport.get_extra_info("socket")
         if sock is not None:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        transport.set_write_buffer_limits(high=HIGH_WATER)
         self.proxy.stats.connections += 1
         self.proxy._pipes.add(self)
+        if self.proxy.net.active:
+            self.net_rules()
         transport.pause_reading()  # until the gripper side is up
-        asyncio.get_running_loop().create_task(self._connect())
+        task = asyncio.get_running_loop().create_task(self._connect())
+        self.proxy._tasks.add(task)
+        task.add_done_callback(self.proxy._tasks.discard)
 
     async def _connect(self) -> None:
         loop = asyncio.get_running_loop()
@@ -165,29 +268,126 @@ class _Pipe(asyncio.Protocol):
             self.close()
             return
         self.upstream = transport
+        if self.closed:
+            transport.close()
+            return
         sock = transport.get_extra_info("socket")
         if sock is not None:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        transport.set_write_buffer_limits(high=HIGH_WATER)
         if self.proxy.pcap is not None:
             self.proxy.pcap.tcp_open(self.peer, self.proxy.server_addr, time.time())
-        if self.client is not None and not self.closed:
-            self.client.resume_reading()
+        for reason in list(self._upstream_holds):  # holds taken before it existed
+            self._upstream_holds.discard(reason)
+            self.hold_upstream(reason, True)
+        self.hold_client("connecting", False)
 
+    # -- flow control: a set of reasons per side; reading resumes when none is left
+    def hold_client(self, reason: str, on: bool) -> None:
+        was = bool(self._client_holds)
+        (self._client_holds.add if on else self._client_holds.discard)(reason)
+        if self.client is not None and not self.client_gone and was != bool(self._client_holds):
+            (self.client.pause_reading if on else self.client.resume_reading)()
+
+    def hold_upstream(self, reason: str, on: bool) -> None:
+        was = bool(self._upstream_holds)
+        (self._upstream_holds.add if on else self._upstream_holds.discard)(reason)
+        if self.upstream is not None and was != bool(self._upstream_holds):
+            (self.upstream.pause_reading if on else self.upstream.resume_reading)()
+
+    def pause_writing(self) -> None:  # the client is slow to read: stop reading the gripper
+        self.hold_upstream("client full", True)
+
+    def resume_writing(self) -> None:
+        self.hold_upstream("client full", False)
+
+    # -- data
     def data_received(self, data: bytes) -> None:
         assert self.upstream is not None
-        self.upstream.write(data)  # forward first: the tap adds no waiting
+        net = self.proxy.net
+        if not net.active:
+            self.upstream.write(data)  # forward first: the tap adds no waiting
+        elif not net.swallow(data):  # a silent gripper never gets the request
+            self.upstream.write(net.garble_bytes(data))
         if self.proxy.pcap is not None:
             self.proxy.pcap.tcp(self.peer, self.proxy.server_addr, data, time.time())
         self.tx.feed(data)
 
     def from_gripper(self, data: bytes) -> None:
-        if self.client is not None:
-            self.client.write(data)
+        if self.client is not None and not self.client_gone:
+            self.shaper.send(data)
         if self.proxy.pcap is not None:
             self.proxy.pcap.tcp(self.proxy.server_addr, self.peer, data, time.time())
         self.rx.feed(data)
 
+    # -- ends: half-close passes through; a client gone leaves the gripper side open for replies in flight
+    def eof_received(self) -> bool:
+        self.client_eof = True
+        if self.proxy.pcap is not None:
+            self.proxy.pcap.tcp_fin(self.peer, self.proxy.server_addr, time.time())
+        if self.upstream is not None and self.upstream.can_write_eof():
+            self.upstream.write_eof()
+        if self.gripper_eofd:
+            self.close()
+        return True
+
+    def gripper_eof(self) -> None:
+        self.gripper_eofd = True
+        if self.proxy.pcap is not None:
+            self.proxy.pcap.tcp_fin(self.proxy.server_addr, self.peer, time.time())
+        if self.client is not None and not self.client_gone and self.client.can_write_eof():
+            self.client.write_eof()
+        if self.client_eof or self.client_gone:
+            self.close()
+
     def connection_lost(self, exc: Exception | None) -> None:
+        self.client_gone = True
+        if self.closed or self.upstream is None or self.upstream.is_closing():
+            self.close()
+            return
+        if not self.client_eof and self.upstream.can_write_eof():
+            self.client_eof = True
+            self.upstream.write_eof()
+        self._upstream_holds.clear()
+        self.upstream.resume_reading()
+        asyncio.get_running_loop().call_later(CLOSE_GRACE_S, self.close)
+
+    def _to_client(self, data: bytes) -> None:
+        if self.client is not None and not self.client_gone and not self.client.is_closing():
+            self.client.write(data)
+
+    def net_rules(self) -> None:
+        """Network faults reset / silent-with-timeout for this connection (new, or a fault just switched on)."""
+        s = self.proxy.net.s
+        if s.reset is not None:
+            self._close_later(s.reset, reset=True)
+        elif s.silent and s.close_after:
+            self._close_later(s.close_after, reset=False)
+
+    def _close_later(self, delay: float, reset: bool) -> None:
+        if self._net_timer is not None:
+            self._net_timer.cancel()
+        fn = self.reset if reset else self.close
+        if delay > 0:
+            self._net_timer = asyncio.get_running_loop().call_later(delay, fn)
+        else:
+            self._net_timer = None
+            fn()
+
+    def reset(self) -> None:
+        """Reset the client's connection (RST) as a gripper's network stack would; the gripper side closes."""
+        c = self.client
+        if c is not None and not c.is_closing():
+            sock = c.get_extra_info("socket")
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            self.proxy.net.counts["reset"] += 1
+            c.abort()
+        self.close()
+
+    def upstream_lost(self) -> None:
+        self.gripper_eofd = True
         self.close()
 
     def close(self) -> None:
@@ -195,78 +395,152 @@ class _Pipe(asyncio.Protocol):
             return
         self.closed = True
         self.proxy._pipes.discard(self)
+        self.shaper.close()
+        if self._net_timer is not None:
+            self._net_timer.cancel()
         for t in (self.client, self.upstream):
             if t is not None:
                 t.close()
 
 
 class _UdpUpstream(asyncio.DatagramProtocol):
-    def __init__(self, proxy: Proxy, client: tuple[str, int]) -> None:
+    """Proxy -> gripper datagrams for one client address (or, on a fixed reply port, for all)."""
+
+    def __init__(self, proxy: Proxy, client: tuple[str, int] | None) -> None:
         self.proxy = proxy
         self.client = client
-        self.rx = _Decoder(proxy.log, "rx", proxy.stats)
+        self.rx = _Decoder(proxy, "rx")
         self.transport: asyncio.DatagramTransport | None = None
+        self.last = time.monotonic()
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = cast(asyncio.DatagramTransport, transport)
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
+        self.last = time.monotonic()
+        lp = self.proxy._udp_proto
+        client = self.client or (lp.route(data) if lp is not None else None)
         listener = self.proxy._udp_listener
-        if listener is not None:
-            listener.sendto(data, self.client)
-        if self.proxy.pcap is not None:
-            self.proxy.pcap.udp(self.proxy.server_addr, self.client, data, time.time())
+        if listener is not None and client is not None:
+            self.proxy.udp_shaper(client).send(data)
+        if self.proxy.pcap is not None and client is not None:
+            self.proxy.pcap.udp(self.proxy.server_addr, client, data, time.time())
         self.rx.feed(data, datagram=True)
 
 
 class _UdpListener(asyncio.DatagramProtocol):
     def __init__(self, proxy: Proxy) -> None:
         self.proxy = proxy
-        self.ups: dict[tuple[str, int], _UdpUpstream] = {}
-        self.tx = _Decoder(proxy.log, "tx", proxy.stats)
+        self.ups: collections.OrderedDict[tuple[str, int], _UdpUpstream] = collections.OrderedDict()
+        self.shared: _UdpUpstream | None = None  # fixed reply port: one socket for every client
+        self.opening: set[tuple[str, int]] = set()
+        self.tx = _Decoder(proxy, "tx")
         self.pending: dict[tuple[str, int], list[bytes]] = {}
+        # fixed reply port: (client, command ID) of requests not yet answered, oldest first
+        self.waiting: collections.deque[tuple[tuple[str, int], int]] = collections.deque(maxlen=1024)
+        self.last_client: tuple[str, int] | None = None
+
+    def route(self, reply: bytes) -> tuple[str, int] | None:
+        """The client a reply on the shared socket belongs to."""
+        if len(reply) > 3:
+            for i, (client, cid) in enumerate(self.waiting):
+                if cid == reply[3]:
+                    del self.waiting[i]
+                    return client
+        return self.last_client
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         client = (str(addr[0]), int(addr[1]))
-        up = self.ups.get(client)
-        if up is not None and up.transport is not None:
-            up.transport.sendto(data)
-        else:
-            self.pending.setdefault(client, []).append(data)
-            if up is None:
-                asyncio.get_running_loop().create_task(self._open(client))
+        self.last_client = client
         if self.proxy.pcap is not None:
             self.proxy.pcap.udp(client, self.proxy.server_addr, data, time.time())
         self.tx.feed(data, datagram=True)
+        net = self.proxy.net
+        if net.active:
+            if net.swallow(data) or net.lose():
+                return  # a silent gripper, or the datagram lost on the way (after the tap)
+            data = net.garble_bytes(data)
+        if self.proxy.reply_port:
+            if len(data) > 3:
+                self.waiting.append((client, data[3]))
+            up = self.shared
+            key: tuple[str, int] = ("", 0)
+        else:
+            up = self.ups.get(client)
+            key = client
+            if up is not None:
+                self.ups.move_to_end(client)
+        if up is not None and up.transport is not None:
+            up.last = time.monotonic()
+            up.transport.sendto(data)
+            return
+        queue = self.pending.setdefault(key, [])
+        if len(queue) < 64:  # datagrams held while the socket opens; more are dropped, as UDP may
+            queue.append(data)
+        if key not in self.opening:
+            self.opening.add(key)
+            task = asyncio.get_running_loop().create_task(self._open(key))
+            self.proxy._tasks.add(task)
+            task.add_done_callback(self.proxy._tasks.discard)
 
-    async def _open(self, client: tuple[str, int]) -> None:
+    async def _open(self, key: tuple[str, int]) -> None:
         loop = asyncio.get_running_loop()
-        up = _UdpUpstream(self.proxy, client)
-        self.ups[client] = up
-        local = ("0.0.0.0", self.proxy.reply_port) if self.proxy.reply_port else None
+        shared = bool(self.proxy.reply_port)
+        up = _UdpUpstream(self.proxy, None if shared else key)
+        local = ("0.0.0.0", self.proxy.reply_port) if shared else None
         try:
             await loop.create_datagram_endpoint(lambda: up, local_addr=local,
                                                 remote_addr=(self.proxy.host, self.proxy.port))
         except OSError as exc:
-            del self.ups[client]
+            self.pending.pop(key, None)
             if self.proxy.log is not None:
                 self.proxy.log.note("tx", f"cannot open UDP to {self.proxy.host}:{self.proxy.port}: {exc}")
             return
+        finally:
+            self.opening.discard(key)
         self.proxy.stats.connections += 1
+        if shared:
+            self.shared = up
+        else:
+            while len(self.ups) >= UDP_UPSTREAMS:  # the least recently used socket makes room
+                _, old = self.ups.popitem(last=False)
+                if old.transport is not None:
+                    old.transport.close()
+            self.ups[key] = up
         assert up.transport is not None
-        for data in self.pending.pop(client, []):
+        for data in self.pending.pop(key, []):
             up.transport.sendto(data)
+        up.last = time.monotonic()  # opening may have taken a while: idle counts from now
+
+    def reap(self, idle: float) -> None:
+        """Close the per-client sockets without traffic for ``idle`` s."""
+        now = time.monotonic()
+        for key, up in list(self.ups.items()):
+            if now - up.last >= idle:
+                del self.ups[key]
+                if up.transport is not None:
+                    up.transport.close()
+
+    def close(self) -> None:
+        for up in [*self.ups.values(), *([self.shared] if self.shared else [])]:
+            if up.transport is not None:
+                up.transport.close()
+        self.ups.clear()
+        self.shared = None
 
 
 class Proxy:
     """Listen on ``listen_host:listen_port`` and forward to ``target`` (``tcp://`` or ``udp://`` URL).
 
-    ``log``: where decoded frames go (None: nowhere); ``pcap``: a pcapng file to write. Run it with
-    ``await proxy.start()`` … ``await proxy.close()`` on a loop; ``port`` is the bound port.
+    ``log``: where decoded frames go (None: nowhere); ``pcap``: a pcapng file to write; ``log_rate``:
+    comm-log entries a second at most (0: all); ``udp_idle``: seconds without traffic after which a
+    client's upstream UDP socket is closed. Run it with ``await proxy.start()`` … ``await
+    proxy.close()`` on a loop; ``port_bound`` is the bound port.
     """
 
     def __init__(self, target: str, listen_port: int = 0, listen_host: str = "127.0.0.1",
-                 log: CommLog | None = None, pcap: str | Path | None = None) -> None:
+                 log: CommLog | None = None, pcap: str | Path | None = None, log_rate: int = 1000,
+                 udp_idle: float = 60.0, net: NetFaults | None = None) -> None:
         ep = parse_url(target)
         if ep.scheme not in ("tcp", "udp"):
             raise ValueError(f"proxy target must be tcp:// or udp://, not {ep.scheme}://")
@@ -276,13 +550,46 @@ class Proxy:
         self.listen_host, self.listen_port = listen_host, listen_port
         self.log = log
         self.stats = ProxyStats()
-        self.pcap = PcapWriter(pcap) if pcap is not None else None
+        self.gate = _LogGate(log, log_rate, self.stats)
+        self.udp_idle = udp_idle
         self.server_addr = (socket.gethostbyname(self.host), self.port)
+        self.pcap = PcapWriter(pcap) if pcap is not None else None
         self._server: asyncio.AbstractServer | None = None
         self._pipes: set[_Pipe] = set()
+        self._tasks: set[asyncio.Task[Any]] = set()
         self._udp_listener: asyncio.DatagramTransport | None = None
         self._udp_proto: _UdpListener | None = None
+        self._ticker: asyncio.Task[None] | None = None
         self.port_bound = 0
+        self.net = net or NetFaults()
+        """Network faults between the gripper and the clients (:mod:`pywsg.server.netfault`): switch them with
+        ``proxy.net.set(kind, params)`` on the proxy's loop, or over ``wsg proxy --control``."""
+        self._udp_shapers: collections.OrderedDict[tuple[str, int], Shaper] = collections.OrderedDict()
+        self.net.listeners.append(self._on_net)
+
+    def _on_net(self, what: str) -> None:
+        for pipe in list(self._pipes):
+            if what == "interrupt":
+                pipe.close()
+            else:
+                pipe.net_rules()
+
+    def udp_shaper(self, client: tuple[str, int]) -> Shaper:
+        """The shaper of the datagrams toward ``client`` (bounded like the upstream sockets)."""
+        sh = self._udp_shapers.get(client)
+        if sh is None:
+            listener = self._udp_listener
+
+            def send(data: bytes, client: tuple[str, int] = client) -> None:
+                if listener is not None and not listener.is_closing():
+                    listener.sendto(data, client)
+
+            sh = self._udp_shapers[client] = Shaper(self.net, send, ordered=False)
+            while len(self._udp_shapers) > UDP_UPSTREAMS:
+                self._udp_shapers.popitem(last=False)[1].close()
+        else:
+            self._udp_shapers.move_to_end(client)
+        return sh
 
     async def start(self) -> Proxy:
         loop = asyncio.get_running_loop()
@@ -295,13 +602,30 @@ class Proxy:
                 lambda: self._udp_proto or _UdpListener(self), local_addr=(self.listen_host, self.listen_port))
             self._udp_listener = transport
             self.port_bound = int(transport.get_extra_info("sockname")[1])
+        self._ticker = loop.create_task(self._tick())
         return self
+
+    async def _tick(self) -> None:
+        """Once a second: flush the capture, write the log's 'not logged' line, reap idle UDP sockets."""
+        while True:
+            await asyncio.sleep(min(1.0, self.udp_idle / 4) if self.udp_idle > 0 else 1.0)
+            if self.pcap is not None:
+                self.pcap.flush()
+            self.gate.summary()
+            if self._udp_proto is not None and self.udp_idle > 0:
+                self._udp_proto.reap(self.udp_idle)
 
     @property
     def address(self) -> str:
         return f"{self.transport}://{self.listen_host}:{self.port_bound}"
 
     async def close(self) -> None:
+        with contextlib.suppress(ValueError):
+            self.net.listeners.remove(self._on_net)
+        for sh in self._udp_shapers.values():
+            sh.close()
+        if self._ticker is not None:
+            self._ticker.cancel()
         for pipe in list(self._pipes):
             pipe.close()
         if self._server is not None:
@@ -311,10 +635,9 @@ class Proxy:
         if self._udp_listener is not None:
             self._udp_listener.close()
         if self._udp_proto is not None:
-            for up in self._udp_proto.ups.values():
-                if up.transport is not None:
-                    up.transport.close()
+            self._udp_proto.close()
+        with contextlib.suppress(Exception):  # what was read is decoded (bounded: the backlogs are)
+            await asyncio.wait_for(asyncio.gather(*list(self._tasks), return_exceptions=True), 10)
+        self.gate.summary()
         if self.pcap is not None:
             self.pcap.close()
-
-

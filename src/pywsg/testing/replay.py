@@ -12,10 +12,11 @@ their own units: mm, mm/s, N, °C). Timing is not compared.
 
 from __future__ import annotations
 
+import collections
 import math
 import socket
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,9 @@ from ..protocol import Command, Frame, FrameParser
 from ..protocol.decode import DecodedFrame, decode_bytes, decode_frame
 
 __all__ = ["Difference", "ReplayReport", "Step", "load_steps", "replay"]
+
+IDLE_WAIT = 0.02
+"""Seconds of real time without a reply before ``replay(idle=...)`` calls ``idle`` (manual clocks)."""
 
 
 @dataclass
@@ -66,11 +70,13 @@ class ReplayReport:
 
 def _records(path: Path) -> Iterable[tuple[str, bytes]]:
     """(``tx``/``rx``, frame bytes) in recorded order."""
-    from ..cli.capture import frames_from_capture, is_capture, jsonl_records
+    from ..capture.reader import frames_from_capture, is_capture, jsonl_records
 
     if is_capture(path):
         for c in frames_from_capture(path):
             d = c.decoded
+            if d.error and d.error.startswith("capture damaged"):
+                raise ValueError(f"{path}: {d.error}")
             if d.command_id is None or d.error:
                 continue
             yield ("tx" if d.direction == "request" else "rx"), d.raw
@@ -85,22 +91,22 @@ def _records(path: Path) -> Iterable[tuple[str, bytes]]:
 def load_steps(path: str | Path) -> list[Step]:
     """The recorded requests with their replies, from a capture or a JSON-lines log."""
     steps: list[Step] = []
+    latest: dict[int, Step] = {}  # the latest request with each ID owns its replies
     for direction, raw in _records(Path(path)):
         d = decode_bytes(raw, "request" if direction == "tx" else "reply")[0]
         if d.command_id is None:
             continue
         if direction == "tx":
-            steps.append(Step(raw, d.command_id, d.command))
-        else:
-            for st in reversed(steps):  # the latest request with this ID owns the reply
-                if st.command_id == d.command_id:
-                    st.replies.append(raw)
-                    break
+            st = latest[d.command_id] = Step(raw, d.command_id, d.command)
+            steps.append(st)
+        elif (owner := latest.get(d.command_id)) is not None:
+            owner.replies.append(raw)
     return steps
 
 
 class _Link:
-    def __init__(self, url: str, timeout: float) -> None:
+    def __init__(self, url: str, timeout: float, idle: Callable[[], None] | None = None) -> None:
+        self.idle = idle
         ep = parse_url(url)
         if ep.scheme not in ("tcp", "udp"):
             raise ValueError(f"replay needs tcp:// or udp://, not {ep.scheme}://")
@@ -114,7 +120,7 @@ class _Link:
             self.sock = socket.create_connection((ep.host, ep.port), timeout=timeout)
             self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self.parser = FrameParser()
-        self.frames: list[Frame] = []
+        self.frames: collections.deque[Frame] = collections.deque()
 
     def send(self, data: bytes) -> None:
         if self.udp:
@@ -128,7 +134,7 @@ class _Link:
         deadline = time.monotonic() + self.timeout
         while len(got) < n:
             while self.frames and len(got) < n:
-                f = self.frames.pop(0)
+                f = self.frames.popleft()
                 if f.command_id == command_id:
                     got.append(f)
             if len(got) >= n:
@@ -136,10 +142,13 @@ class _Link:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
-            self.sock.settimeout(left)
+            self.sock.settimeout(min(left, IDLE_WAIT) if self.idle is not None else left)
             try:
                 data = self.sock.recv(65536)
             except TimeoutError:
+                if self.idle is not None:
+                    self.idle()  # a manual clock: move time on so the motion can end
+                    continue
                 break
             if not data:
                 break
@@ -168,19 +177,21 @@ def _compare(i: int, st: Step, rec: DecodedFrame, got: DecodedFrame, tol: float,
             diff(a.name, a.text, b.text)
 
 
-def replay(path: str | Path, url: str, tolerance: float = 0.5, timeout: float = 10.0) -> ReplayReport:
+def replay(path: str | Path, url: str, tolerance: float = 0.5, timeout: float = 10.0,
+           idle: Callable[[], None] | None = None) -> ReplayReport:
     """Send the recorded requests of ``path`` to the gripper at ``url``; compare what comes back.
 
     ``tolerance``: largest difference of a measured (floating-point) value, in the field's unit.
     ``timeout``: longest wait for one request's replies, s (a motion's final reply included).
+    ``idle``: called whenever no reply came for ``IDLE_WAIT`` s (a host moves a manual clock on).
     """
     steps = load_steps(path)
     report = ReplayReport(steps=len(steps))
-    link = _Link(url, timeout)
+    link = _Link(url, timeout, idle)
     try:
         for i, st in enumerate(steps, 1):
             if link.sock.fileno() < 0:  # the recorded client disconnected (07h) and came back
-                link = _Link(url, timeout)
+                link = _Link(url, timeout, idle)
             link.send(st.request)
             got = link.receive(st.command_id, len(st.replies))
             report.replies += len(got)

@@ -30,6 +30,7 @@ device's command and state listeners).
 
 from __future__ import annotations
 
+import heapq
 import math
 import sys
 from collections.abc import Callable, Mapping
@@ -70,7 +71,8 @@ def _command_id(text: str, where: str) -> int:
         else:
             if cid in CATALOG:
                 return cid
-    raise ScenarioError(f"{where}: before: unknown command {text!r} (a name like GRIP_PART or an ID like 25h)")
+    raise ScenarioError(f"{where}: before: unknown command {_short(repr(text))} "
+                        "(a name like GRIP_PART or an ID like 25h)")
 
 
 @dataclass(frozen=True)
@@ -114,8 +116,12 @@ class Scenario:
                 data = tomllib.load(f)
         except OSError as exc:
             raise ScenarioError(f"{path}: {exc.strerror or exc}") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+        except UnicodeDecodeError as exc:
+            raise ScenarioError(f"{path}: not UTF-8 text (byte {exc.start}): a scenario is a TOML file") from None
+        except ValueError as exc:  # TOMLDecodeError, or an integer beyond Python's 4,300-digit limit
+            raise ScenarioError(f"{path}: not valid TOML: {_short(str(exc), 200)}") from None
+        except RecursionError:
+            raise ScenarioError(f"{path}: not valid TOML: nested too deeply") from None
         return cls.parse(data, str(path))
 
     @classmethod
@@ -129,39 +135,70 @@ class Scenario:
         return cls(tuple(_event(e, f"{source}: event {i + 1}") for i, e in enumerate(raw)), source)
 
 
+def _short(text: str, limit: int = 40) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _show(value: Any) -> str:
+    """``repr`` cut short; a huge integer (its repr may even raise) is named, not printed."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return "a huge integer"
+    if isinstance(value, list | dict):
+        return "a list" if isinstance(value, list) else "a table"
+    return _short(repr(value))
+
+
+def _finite(v: Any) -> bool:
+    """A TOML number a float can hold (a 400-digit integer cannot)."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def _event(e: Mapping[str, Any], where: str) -> Event:
     do = e.get("do")
-    if do not in ACTIONS:
-        raise ScenarioError(f"{where}: do: must be one of {', '.join(ACTIONS)}, not {do!r}")
+    if not isinstance(do, str) or do not in ACTIONS:
+        raise ScenarioError(f"{where}: do: must be one of {', '.join(ACTIONS)}, not {_show(do)}")
     triggers = [k for k in ("at", "before", "after") if k in e]
     if len(triggers) != 1:
         raise ScenarioError(f"{where}: give exactly one of at / before / after")
     params = {k: v for k, v in e.items() if k not in _TRIGGER_KEYS}
+    for k, v in params.items():  # checked now, so a bad value cannot stop the story when its event fires
+        if isinstance(v, int | float) and not isinstance(v, bool) and not _finite(v):
+            raise ScenarioError(f"{where}: {k}: must be a finite number, not {_show(v)}")
+        if not isinstance(v, str | int | float | bool):
+            raise ScenarioError(f"{where}: {k}: must be a number, string or boolean, not {_show(v)}")
 
     def num(key: str, default: float | None) -> float | None:
         v = e.get(key, default)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
-            raise ScenarioError(f"{where}: {key}: must be a non-negative number of seconds, not {v!r}")
+        if not _finite(v) or v < 0:
+            raise ScenarioError(f"{where}: {key}: must be a non-negative number of seconds, not {_show(v)}")
         return float(v)
 
     cycle = e.get("cycle")
-    if cycle is not None and (isinstance(cycle, bool) or not isinstance(cycle, int) or cycle < 1):
-        raise ScenarioError(f"{where}: cycle: must be a whole number from 1, not {cycle!r}")
+    if cycle is not None and (isinstance(cycle, bool) or not isinstance(cycle, int) or not 1 <= cycle < 2**31):
+        raise ScenarioError(f"{where}: cycle: must be a whole number from 1, not {_show(cycle)}")
     before = after = None
+    for key in ("before", "after", "note"):
+        if key in e and not isinstance(e[key], str):
+            raise ScenarioError(f"{where}: {key}: must be a string, not {_show(e[key])}")
     if "before" in e:
-        before = _command_id(str(e["before"]), where)
+        before = _command_id(e["before"], where)
     if "after" in e:
         try:
-            after = GripperState[str(e["after"]).upper()]
+            after = GripperState[e["after"].upper()]
         except KeyError:
             names = ", ".join(s.name for s in GripperState)
-            raise ScenarioError(f"{where}: after: must be a gripper state ({names}), not {e['after']!r}") from None
+            raise ScenarioError(f"{where}: after: must be a gripper state ({names}), not {_show(e['after'])}") from None
     if "at" in e and (cycle is not None or "delay" in e):
         raise ScenarioError(f"{where}: at: cycle and delay only go with before/after")
-    return Event(do=str(do), params=params, at=num("at", None), before=before, after=after,
-                 delay=num("delay", 0.0) or 0.0, cycle=cycle, note=str(e.get("note", "")))
+    return Event(do=do, params=params, at=num("at", None), before=before, after=after,
+                 delay=num("delay", 0.0) or 0.0, cycle=cycle, note=e.get("note", ""))
 
 
 @dataclass
@@ -184,17 +221,25 @@ class ScenarioRunner:
     _counts: dict[int, int] = field(default_factory=dict)
     _state: GripperState | None = None
     _seq: int = 0
+    _before: dict[int, list[Event]] = field(default_factory=dict)
+    _after: dict[GripperState, list[Event]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        # a heap and per-trigger indexes: loading and serving stay linear in the number of events
         for ev in self.scenario.events:
             if ev.at is not None:
-                self._queue(self.start + ev.at, ev)
+                self._seq += 1
+                self._pending.append((self.start + ev.at, self._seq, ev))
+            elif ev.before is not None:
+                self._before.setdefault(ev.before, []).append(ev)
+            elif ev.after is not None:
+                self._after.setdefault(ev.after, []).append(ev)
+        heapq.heapify(self._pending)
         self._state = self.gripper.snapshot().gripper_state
 
     def _queue(self, t: float, ev: Event) -> None:
         self._seq += 1
-        self._pending.append((t, self._seq, ev))
-        self._pending.sort(key=lambda x: (x[0], x[1]))
+        heapq.heappush(self._pending, (t, self._seq, ev))
         if self.on_queue is not None:
             self.on_queue()
 
@@ -205,7 +250,7 @@ class ScenarioRunner:
     def run_due(self, now: float) -> None:
         """Carry out every timed action due at ``now``."""
         while self._pending and self._pending[0][0] <= now:
-            _, _, ev = self._pending.pop(0)
+            _, _, ev = heapq.heappop(self._pending)
             self._do(ev, now)
 
     def _fires(self, ev: Event) -> bool:
@@ -215,8 +260,8 @@ class ScenarioRunner:
     def before_command(self, command_id: int, now: float) -> None:
         """A request with ``command_id`` is about to be executed."""
         self.run_due(now)
-        for ev in self.scenario.events:
-            if ev.before == command_id and self._fires(ev):
+        for ev in self._before.get(command_id, ()):
+            if self._fires(ev):
                 self._do(ev, now)
 
     def observe(self, now: float) -> None:
@@ -229,8 +274,8 @@ class ScenarioRunner:
         if state == self._state:
             return
         self._state = state
-        for ev in self.scenario.events:
-            if ev.after == state and self._fires(ev):
+        for ev in self._after.get(state, ()):
+            if self._fires(ev):
                 if ev.delay:
                     self._queue(now + ev.delay, ev)
                 else:
@@ -277,6 +322,8 @@ async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> 
     """Serve ``runner``'s timed actions on the running loop at their times (real clock); cancel to stop."""
     import asyncio
 
+    from ..device.clock import real_seconds
+
     wake = asyncio.Event()
     runner.on_queue = wake.set
     try:
@@ -286,7 +333,7 @@ async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> 
             if due is None:
                 await wake.wait()
                 continue
-            delay = due - clock()
+            delay = real_seconds(clock, due - clock())  # a scaled clock runs faster than real time
             if delay > 0:
                 try:
                     await asyncio.wait_for(wake.wait(), delay)

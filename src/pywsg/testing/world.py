@@ -14,13 +14,16 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from . import world_faults
+
 __all__ = ["ACTIONS", "FAULT_KINDS", "WorldError", "apply", "world_state"]
 
-FAULT_KINDS = ("power", "current", "finger")
+FAULT_KINDS = ("power", "current", "finger", "ack", "watchdog", "unplugged")
 """Faults that can be switched on and off (command manual 000 Appendix B flags SF_POWER_FAULT,
-SF_CURR_FAULT, SF_FINGER_FAULT)."""
+SF_CURR_FAULT, SF_FINGER_FAULT; acknowledge refused, the silent-client watchdog and an unplugged
+finger: :mod:`pywsg.testing.world_faults`)."""
 
-ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat")
+ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat", "slip", "disconnect", "net")
 """Names of the world actions (also the ``do`` key of a scenario event)."""
 
 
@@ -34,18 +37,25 @@ class WorldError(ValueError):
 
 
 def _number(params: Mapping[str, Any], name: str, default: float | None = None) -> float:
+    """A JSON/TOML number: strings are refused (``"2_2"`` is not 22), as by the strict web API."""
     value = params.get(name, default)
     if value is None:
         raise WorldError(name, "missing")
-    if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise WorldError(name, f"must be a number, not {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise WorldError(name, f"must be a number, not {_show(value)}")
     try:
         out = float(value)
-    except ValueError:
-        raise WorldError(name, f"must be a number, not {value!r}") from None
+    except OverflowError:  # a 400-digit integer
+        raise WorldError(name, "must be a finite number") from None
     if not math.isfinite(out):
         raise WorldError(name, "must be a finite number")
     return out
+
+
+def _show(value: Any) -> str:
+    """``repr`` cut short: a refused value may be huge."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 64 else "a huge integer"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _width(gripper: Any, params: Mapping[str, Any]) -> float:
@@ -54,6 +64,17 @@ def _width(gripper: Any, params: Mapping[str, Any]) -> float:
     if not 0 <= width <= stroke:
         raise WorldError("width", f"must be within 0..{stroke:g} mm (the stroke), not {width:g}")
     return width
+
+
+def _inside(params: Mapping[str, Any]) -> bool:
+    """``inside``: true grips the part from inside (a ring around the fingers), false (the default)
+    from outside (a part between the fingers), whatever the fingers' width when it is placed."""
+    value = params.get("inside", False)
+    if value is None:
+        return False
+    if isinstance(value, bool):
+        return value
+    raise WorldError("inside", f"must be true (gripped from inside) or false (from outside), not {_show(value)}")
 
 
 def _on(params: Mapping[str, Any]) -> bool:
@@ -68,9 +89,12 @@ def _on(params: Mapping[str, Any]) -> bool:
 def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) -> str:
     """Carry out one world ``action`` on ``gripper``; returns what was done, in words.
 
-    ``action``/``params``: ``part`` (width, stiffness=None), ``remove_part``, ``block`` (width),
-    ``unblock``, ``fault`` (kind: power|current|finger, on=True, finger=1|2 for kind finger),
-    ``heat`` (delta_c). Raises :class:`WorldError` for bad parameters.
+    ``action``/``params``: ``part`` (width, stiffness=None, inside=False: gripped from outside unless
+    True), ``remove_part``, ``block`` (width),
+    ``unblock``, ``fault`` (kind: power|current|finger|ack|watchdog|unplugged, on=True, finger=1|2
+    for finger and unplugged, timeout=s for watchdog), ``heat`` (delta_c), ``slip`` (duration=s: the
+    part slides out), ``disconnect`` (the gripper closes its connections), ``net`` (kind: a network fault of
+    :mod:`pywsg.server.netfault` or ``clear``, on=True, its parameters). Raises :class:`WorldError`.
     """
     p: Mapping[str, Any] = params or {}
     faults = getattr(gripper, "faults", None)
@@ -79,14 +103,16 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     try:
         if action == "part":
             width = _width(gripper, p)
+            inside = _inside(p)
+            side = "inside, a ring gripped from inside" if inside else "outside, between the fingers"
             if p.get("stiffness") is None:
-                faults.place_part(width)
-                return f"part of {width:g} mm placed"
+                faults.place_part(width, inside=inside)
+                return f"part of {width:g} mm placed ({side})"
             stiffness = _number(p, "stiffness")
             if stiffness <= 0:
                 raise WorldError("stiffness", "must be positive (N/mm)")
-            faults.place_part(width, stiffness=stiffness)
-            return f"part of {width:g} mm ({stiffness:g} N/mm) placed"
+            faults.place_part(width, stiffness=stiffness, inside=inside)
+            return f"part of {width:g} mm ({stiffness:g} N/mm) placed ({side})"
         if action == "remove_part":
             faults.remove_part()
             return "part removed"
@@ -102,7 +128,15 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
             faults.heat(delta)
             return f"temperature changed by {delta:+g} °C"
         if action == "fault":
-            return _fault(faults, p)
+            return _fault(faults, p, gripper)
+        if action == "slip":
+            return world_faults.slip(gripper, _seconds(p, "duration", 1.0))
+        if action == "disconnect":
+            return world_faults.interrupt(gripper)
+        if action == "net":
+            return _net(gripper, p)
+        if action == "net_clear":
+            return _net(gripper, {"kind": "clear"})
     except WorldError:
         raise
     except ValueError as exc:  # the device names the field: "width: must be ..."
@@ -111,10 +145,43 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     raise WorldError("action", f"unknown world action {action!r} (one of {', '.join(ACTIONS)})")
 
 
-def _fault(faults: Any, p: Mapping[str, Any]) -> str:
+def _seconds(p: Mapping[str, Any], name: str, default: float) -> float:
+    value = _number(p, name, default)
+    if value < 0:
+        raise WorldError(name, f"must be a non-negative number of seconds, not {value:g}")
+    return value
+
+
+def _finger(p: Mapping[str, Any]) -> int:
+    finger = int(_number(p, "finger", 1))
+    if finger not in (1, 2):
+        raise WorldError("finger", f"must be 1 or 2, not {finger}")
+    return finger
+
+
+def _net(gripper: Any, p: Mapping[str, Any]) -> str:
+    from ..server.netfault import NetFaultError, net_faults
+
+    kind = str(p.get("kind", ""))
+    nf = net_faults(gripper)
+    if kind == "clear":
+        return nf.clear()
+    try:
+        return nf.set(kind, {k: v for k, v in p.items() if k != "kind"})
+    except NetFaultError as exc:
+        raise WorldError(exc.field, exc.reason) from None
+
+
+def _fault(faults: Any, p: Mapping[str, Any], gripper: Any = None) -> str:
     kind = str(p.get("kind", ""))
     on = _on(p)
     state = "on" if on else "off"
+    if kind == "ack":
+        return world_faults.acknowledge_refused(gripper, on)
+    if kind == "watchdog":
+        return world_faults.watchdog(gripper, _seconds(p, "timeout", 1.0) if on else None)
+    if kind == "unplugged":
+        return world_faults.unplug_finger(gripper, _finger(p) - 1, on)
     if kind == "power":
         faults.power_fault(on)
         return f"power fault {state}"
@@ -141,6 +208,7 @@ def world_state(gripper: Any) -> dict[str, Any]:
           if getattr(gripper, attr, False)]
     on += [f"finger {i + 1}" for i, f in enumerate(getattr(gripper, "fingers", ()))
            if getattr(f, "fault", False)]
+    on += world_faults.active(gripper)
     return {
         "time": round(float(snap.time), 6),
         "model": snap.model,
@@ -150,7 +218,21 @@ def world_state(gripper: Any) -> dict[str, Any]:
         "temperature": round(float(snap.temperature), 2),
         "fast_stop": bool(snap.fast_stop),
         "part": snap.part,
+        "part_inside": _part_inside(gripper),
         "blocked_at": snap.blocked_at,
         "faults": on,
+        "net": _net_state(gripper),
         "statistics": list(snap.statistics),
     }
+
+
+def _part_inside(gripper: Any) -> bool | None:
+    """True for a ring gripped from inside, False for a part gripped from outside, None without a part."""
+    part = getattr(gripper, "obstacles", {}).get("part")
+    return None if part is None else part.blocks > 0
+
+
+def _net_state(gripper: Any) -> dict[str, Any]:
+    from ..server.netfault import net_faults
+
+    return net_faults(gripper).state()

@@ -24,13 +24,17 @@ from pydantic import BaseModel, ConfigDict, Field
 from .. import __version__
 from ..device import LogLevel
 from ..protocol import Command, HomingDirection, Status
-from .context import WebContext, command_result, error, motion_limits
+from .context import WebContext, command_result, error, motion_limits, motion_ranges
 from .fieldbus_view import fieldbus_view
 from .reference import catalog_json
 from .security import WebSession
 from .views import coerce_setting, field_of_error, jsonable, settings_schema
 
 log = logging.getLogger(__name__)
+
+# faults that keep a FAST STOP from being acknowledged, as the Gripper box names them
+FAULT_LABELS = (("SF_POWER_FAULT", "Power Fault"), ("SF_CURR_FAULT", "Current Fault"),
+                ("SF_TEMP_FAULT", "Temperature Fault"), ("SF_FINGER_FAULT", "Finger Fault"))
 
 
 class StrictBody(BaseModel):
@@ -107,9 +111,10 @@ def router(ctx: WebContext) -> APIRouter:
     @r.get("/info")
     async def info() -> dict[str, Any]:
         status, values = bridge.send(Command.GET_SYSTEM_INFO, record=False)
+        limits = bridge.limits()
         return {"model": ctx.model_name(), "system_info": jsonable(values) if status == Status.E_SUCCESS else None,
-                "limits": bridge.limits(), "sim": jsonable(ctx.sim_info), "version": __version__,
-                "simulation": ctx.has_faults(), "fieldbus": ctx.fieldbus is not None,
+                "limits": limits, "ranges": motion_ranges(limits), "sim": jsonable(ctx.sim_info),
+                "version": __version__, "simulation": ctx.has_faults(), "fieldbus": ctx.fieldbus is not None,
                 "settings_file": str(ctx.settings_path) if ctx.settings_path else None}
 
     # -- the fingers ------------------------------------------------------------------------------
@@ -128,7 +133,17 @@ def router(ctx: WebContext) -> APIRouter:
 
     @r.post("/ack")
     async def ack() -> JSONResponse:
-        return run(Command.ACK_FAST_STOP, key="ack")
+        resp = run(Command.ACK_FAST_STOP, key="ack")
+        if resp.status_code == 409:
+            # E_ACCESS_DENIED while a fault persists: say which one (the flags name it; 000 §3.2.5)
+            faults = [label for name, label in FAULT_LABELS if name in ctx.state()["flag_names"]]
+            if faults:
+                body = json.loads(bytes(resp.body))
+                body["faults"] = faults
+                body["detail"] = (f"Ack refused: {' and '.join(faults)} still active; the FAST STOP cannot be "
+                                  "acknowledged until the fault is gone (Simulation page: switch the fault off)")
+                return JSONResponse(body, status_code=409)
+        return resp
 
     @r.post("/home")
     async def home(body: HomeBody | None = None) -> JSONResponse:

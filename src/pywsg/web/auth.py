@@ -17,6 +17,7 @@ import ipaddress
 import logging
 from collections.abc import Awaitable, Callable, Iterable
 from html import escape
+from string import Template
 from urllib.parse import parse_qs, quote, urlsplit
 
 from fastapi import APIRouter, FastAPI, HTTPException, Request, WebSocket
@@ -193,12 +194,27 @@ def safe_next(target: str) -> str:
     return target
 
 
+_LOGIN_FORM = """<form method="post" action="/login" id="login-form">
+  <h1>WSG Control Panel</h1>
+  <input type="hidden" name="csrf_token" value="$csrf">
+  <input type="hidden" name="next" value="$next">
+  <label>Password <input type="password" name="password" id="password" autocomplete="current-password" required \
+autofocus></label>
+  <p class="error" id="login-error">$error</p>
+  <button type="submit" id="login-submit">Log in</button>
+</form>"""
+
+# no password set (a loopback bind): nothing to log in to, so no password field, and a way back
+_NO_LOGIN = """<h1>WSG Control Panel</h1>
+<p id="login-note">No password is set for this interface: no login needed, every page is open from this computer.</p>
+<p><a class="back" id="login-back" href="$next">Back to the interface</a></p>"""
+
+
 def login_html(ctx: WebContext, request: Request, target: str, error_text: str, status: int = 200) -> HTMLResponse:
     s: WebSession = request.state.websession
-    body = template("login.html").safe_substitute(
-        csrf=escape(s.csrf), next=escape(safe_next(target)), error=escape(error_text),
-        note="" if ctx.auth.login_possible else "No password is set for this interface: no login needed.",
-    )
+    content = Template(_LOGIN_FORM if ctx.auth.login_possible else _NO_LOGIN).safe_substitute(
+        csrf=escape(s.csrf), next=escape(safe_next(target)), error=escape(error_text))
+    body = template("login.html").safe_substitute(content=content)
     return HTMLResponse(body, status_code=status, headers={"Cache-Control": "no-store"})
 
 

@@ -21,6 +21,7 @@ from typing import Any
 
 from fastapi.responses import JSONResponse
 
+from ..device.clock import real_seconds
 from ..protocol import CATALOG, Command, DeviceType, Frame, Status
 from .security import Auth
 from .views import jsonable, state_view
@@ -137,7 +138,7 @@ class LogFeed:
         wall = time.time()
         if isinstance(t, int | float) and self.clock is not None:
             with contextlib.suppress(Exception):
-                wall -= max(0.0, float(self.clock()) - t)
+                wall -= max(0.0, real_seconds(self.clock, float(self.clock()) - t))  # --time-scale K
         data["wall_time"] = wall
         self.entries.append(data)
 
@@ -231,17 +232,33 @@ def _check_range(errors: dict[str, str], name: str, value: float, low: float | N
         errors[name] = f"must be between {lo} and {hi} {unit}".replace("between  and", "at most")
 
 
+def motion_ranges(lim: Mapping[str, float]) -> dict[str, tuple[float, float, str]]:
+    """(low, high, unit) a web form accepts for width, speed and force, from the 53h limits.
+
+    The Control Panel shows these beside its fields and ``motion_limits`` refuses outside them,
+    so the hint ("allowed 5 … 120 N") and the refusal ("must be between 5 and 120 N") agree.
+    """
+    out: dict[str, tuple[float, float, str]] = {}
+    if "stroke" in lim:
+        out["width"] = (0.0, lim["stroke"], "mm")
+    if "max_speed" in lim:
+        out["speed"] = (lim.get("min_speed", 0.0), lim["max_speed"], "mm/s")
+    if "ovr_force" in lim or "nom_force" in lim:
+        out["force"] = (lim.get("min_force", 0.0), max(lim.get("ovr_force", 0.0), lim.get("nom_force", 0.0)), "N")
+    return out
+
+
 def motion_limits(ctx: WebContext, width: float | None, speed: float | None, force: float | None = None,
                   relative: bool = False) -> None:
-    """Raise InputError naming each value outside the device's 53h limits (mm, mm/s, N)."""
-    lim = ctx.bridge.limits()
+    """Raise InputError naming each value outside ``motion_ranges`` (mm, mm/s, N)."""
+    ranges = motion_ranges(ctx.bridge.limits())
     errors: dict[str, str] = {}
-    stroke = lim.get("stroke")
-    if width is not None and stroke is not None:
-        _check_range(errors, "width", width, -stroke if relative else 0.0, stroke, "mm")
-    if speed is not None and "max_speed" in lim:
-        _check_range(errors, "speed", speed, 0.0, lim["max_speed"], "mm/s")
-    if force is not None and "ovr_force" in lim:
-        _check_range(errors, "force", force, 0.0, max(lim["ovr_force"], lim.get("nom_force", 0.0)), "N")
+    for name, value in (("width", width), ("speed", speed), ("force", force)):
+        if value is None or name not in ranges:
+            continue
+        low, high, unit = ranges[name]
+        if name == "width" and relative:
+            low = -high
+        _check_range(errors, name, value, low, high, unit)
     if errors:
         raise InputError(errors)

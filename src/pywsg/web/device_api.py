@@ -71,7 +71,9 @@ def router(ctx: WebContext) -> APIRouter:
         fw = info.get("fw_version")
         return {"model": ctx.model_name(), "firmware": firmware_text(fw) if isinstance(fw, int) else None,
                 "serial": info.get("sn"), "hw_revision": info.get("hwrev"),
-                "tag": tag.get("tag") if tag else None}
+                "tag": tag.get("tag") if tag else None,
+                "location": getattr(ctx.gripper.settings, "location", None),
+                "contact": getattr(ctx.gripper.settings, "contact", None)}
 
     @r.post("/tag")
     async def set_tag(body: TagBody) -> JSONResponse:

@@ -3,17 +3,21 @@
 Each register image is shown byte by byte (index, hex) with the register it belongs to, decoded:
 flag bytes as named check boxes, numbers in mm, mm/s, N, the status code by name. Bytes come from
 the ``FieldbusController`` and are decoded by ``pywsg.fieldbus.image`` (the one place that knows the
-layout and byte order: docs/architecture.md, "Modbus register byte order").
+layout and byte order: docs/architecture.md, "Modbus register byte order"). The Bus State box lists
+every bus adapter attached to the controller with the rows its ``bus_state()`` gives, so a bus only
+implements that (``pywsg.fieldbus.bus.BusAdapter``).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Any
 
 from ..fieldbus.image import INPUT_SIZE, OUTPUT_SIZE, InputImage, OutputImage
-from ..fieldbus.modbus import handle_of
 from ..protocol import GState, Status, SystemFlag
+
+log = logging.getLogger(__name__)
 
 # Bit labels as in the screenshot (STOP/ACK, JOG+, ...), lowest bit first.
 CMD_BITS = ("MOVE", "GRIP", "RELEASE", "HOMING", "STOP/ACK", "FASTSTOP", "JOG+", "JOG-")
@@ -76,13 +80,37 @@ def controller_of(fieldbus: Any) -> Any:
     return getattr(fieldbus, "controller", fieldbus)
 
 
+def _buses(fieldbus: Any) -> list[Any]:
+    """The bus adapters feeding the controller (a lone ``serve_modbus`` handle is its own bus)."""
+    buses = list(getattr(controller_of(fieldbus), "buses", ()) or ())
+    if not buses and hasattr(fieldbus, "bus_state"):
+        buses = [fieldbus]
+    return buses
+
+
+def buses_view(fieldbus: Any) -> list[dict[str, Any]]:
+    """The Bus State box (003 §6): one entry per attached bus, ``{"name", "rows": [{"label", "text"}]}``,
+    the rows in the order the bus's ``bus_state()`` gives them. A bus whose ``bus_state()`` fails shows
+    one row saying so (the monitor keeps running)."""
+    out = []
+    for bus in _buses(fieldbus):
+        name = str(getattr(bus, "name", type(bus).__name__))
+        try:
+            rows = [{"label": str(k), "text": str(v)} for k, v in bus.bus_state().items()]
+        except Exception as exc:  # one broken bus must not take the monitor down
+            log.exception("%s: bus_state() failed", name)
+            rows = [{"label": "Interface state", "text": f"unknown ({type(exc).__name__})"}]
+        out.append({"name": name, "rows": rows})
+    return out
+
+
 def bus_state(fieldbus: Any) -> dict[str, Any]:
-    """The Bus State box (003 §6): is a Modbus/TCP server running, how many masters, last write.
+    """The Modbus/TCP server's state in numbers (for scripts; the page shows :func:`buses_view`).
 
     ``state``: "online" (a master is connected), "waiting" (served, no master), "offline" (no
-    server serves this controller). ``last_write`` and ``now`` are ``time.time()`` seconds.
+    Modbus/TCP server serves this controller). ``last_write`` and ``now`` are ``time.time()`` seconds.
     """
-    handle = fieldbus if hasattr(fieldbus, "masters") else handle_of(controller_of(fieldbus))
+    handle = next((b for b in _buses(fieldbus) if hasattr(b, "masters")), None)
     if handle is None:
         return {"protocol": "Modbus/TCP", "state": "offline", "port": None, "masters": 0, "last_write": None,
                 "now": time.time()}
@@ -95,7 +123,8 @@ def fieldbus_view(fieldbus: Any) -> dict[str, Any]:
     """What the Fieldbus Monitor page and its WebSocket messages carry."""
     ctl = controller_of(fieldbus)
     if ctl is None:
-        return {"available": False, "model": None, "output": _MISSING, "input": _MISSING, "bus": bus_state(None)}
+        return {"available": False, "model": None, "output": _MISSING, "input": _MISSING, "bus": bus_state(None),
+                "buses": []}
     model = str(getattr(ctl, "model", "wsg50"))
     out = bytes(ctl.output_bytes)[:OUTPUT_SIZE]
     inp = bytes(ctl.input_bytes())[:INPUT_SIZE]
@@ -106,4 +135,5 @@ def fieldbus_view(fieldbus: Any) -> dict[str, Any]:
         "output": _bytes_view(out, output_registers(OutputImage.unpack(out), model)),
         "input": _bytes_view(inp, input_registers(InputImage.unpack(inp), model)),
         "bus": bus_state(fieldbus),
+        "buses": buses_view(fieldbus),
     }

@@ -5,7 +5,8 @@ markdown-it-py, which rich already brings; raw HTML in a doc is escaped, not pas
 ``/docs/raw/<name>.md`` is the Markdown itself; ``/docs/img/<name>.png`` the screenshots the docs show.
 Only names listed in those folders are served: no path traversal. The downloads are what the
 real panel offers and we can honestly provide, generated from the code that implements them: the
-command reference (HTML) and the fieldbus register map (CSV, manual 003 §4).
+command reference (HTML), the fieldbus register map (CSV, manual 003 §4) and the device description
+files (GSDML, GSD: every file of :mod:`pywsg.fieldbus.descriptions`).
 """
 
 from __future__ import annotations
@@ -89,6 +90,18 @@ def router(ctx: WebContext) -> APIRouter:
                 "</head><body><h1>WSG command reference (pywsg)</h1>"
                 f"{command_reference_html()}</body></html>")
         return _attachment(page, "text/html; charset=utf-8", "wsg-command-reference.html")
+
+    @r.get("/downloads/descriptions/{name}")
+    async def download_description(name: str) -> Response:
+        """A device description file (GSDML, its bitmap, GSD): only names the package folder lists."""
+        from ..fieldbus import descriptions
+
+        try:
+            data = descriptions.read(name)
+        except KeyError:
+            raise HTTPException(404, f"no device description file {name!r}") from None
+        return Response(data, media_type=descriptions.media_type(name),
+                        headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
     @r.get("/downloads/fieldbus-register-map.csv")
     async def download_register_map() -> Response:

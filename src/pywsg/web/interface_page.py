@@ -179,13 +179,67 @@ def store_path(settings_path: Path | None) -> Path | None:
     return None if settings_path is None else settings_path.with_name(settings_path.stem + ".interface.json")
 
 
+#: Beside the station address while ``wsg sim --profibus`` runs a DP slave for this gripper.
+PROFIBUS_APPLIED = ("Applied at once to the running PROFIBUS DP slave and stored; a master exchanging data "
+                    "with the old address loses the gripper (fail-safe). Shown as the Station Address on the "
+                    "Fieldbus Monitor.")
+
+
+PROFINET_APPLIED = {
+    "profinet_name": "Applied at once to the running PROFINET IO device and stored; a controller's AR with the "
+                     "old name ends. A controller may also set it by DCP (then shown here).",
+    "ip_address": "Applied at once to the running PROFINET IO device (its own address on the --profinet "
+                  "interface; the host's addresses are unchanged) and stored; an AR in progress ends.",
+    "netmask": "Applied to the PROFINET IO device with the IP address.",
+    "gateway": "Applied to the PROFINET IO device with the IP address.",
+}
+
+
+def profinet_bus(fieldbus: Any) -> Any:
+    """The running PROFINET IO device of this gripper (``wsg sim --profinet IFACE``), or None."""
+    controller = getattr(fieldbus, "controller", fieldbus)
+    for bus in getattr(controller, "buses", ()) or ():
+        if getattr(bus, "name", "") == "PROFINET IO" and hasattr(bus, "apply_settings"):
+            return bus
+    return None
+
+
+def profibus_bus(fieldbus: Any) -> Any:
+    """The running PROFIBUS DP slave of this gripper (``wsg sim --profibus``), or None."""
+    controller = getattr(fieldbus, "controller", fieldbus)
+    for bus in getattr(controller, "buses", ()) or ():
+        if getattr(bus, "name", "") == "PROFIBUS DP" and hasattr(bus, "set_address"):
+            return bus
+    return None
+
+
 def router(ctx: WebContext) -> APIRouter:
     """``GET`` and ``POST /api/interface`` (the panel of ``templates/interface_panels.html``)."""
     r = APIRouter()
     store = InterfaceStore(store_path(ctx.settings_path))
 
+    def sync_profibus() -> Any:
+        """The live slave's address wins over the stored one (a master may have set it: Set_Slave_Address)."""
+        bus = profibus_bus(ctx.fieldbus)
+        if bus is not None and store.config.profibus_address != bus.address:
+            store.config = dataclasses.replace(store.config, profibus_address=bus.address)
+        return bus
+
+    def sync_profinet() -> Any:
+        """The live device's name wins over the stored one (a controller may have set it by DCP)."""
+        bus = profinet_bus(ctx.fieldbus)
+        if bus is not None and store.config.profinet_name != bus.station.name \
+                and profinet_name_error(bus.station.name) is None:
+            store.config = dataclasses.replace(store.config, profinet_name=bus.station.name)
+        return bus
+
     def view() -> dict[str, Any]:
-        return {"values": dataclasses.asdict(store.config), "interfaces": INTERFACES, "notes": NOT_APPLIED,
+        notes = dict(NOT_APPLIED)
+        if sync_profibus() is not None:
+            notes["profibus_address"] = PROFIBUS_APPLIED
+        if sync_profinet() is not None:
+            notes.update(PROFINET_APPLIED)
+        return {"values": dataclasses.asdict(store.config), "interfaces": INTERFACES, "notes": notes,
                 "max_station_address": MAX_STATION,
                 "stored_in": str(store.path) if store.path else None, "problem": store.problem,
                 "serving": ctx.sim_info}
@@ -204,12 +258,23 @@ def router(ctx: WebContext) -> APIRouter:
             return error(422, "invalid input: body is not JSON", {"_": "body is not JSON"})
         if not isinstance(raw, dict) or not raw:
             return error(422, "invalid input: expected a JSON object {name: value}", {"_": "expected a JSON object"})
+        bus = sync_profibus()
+        pn = sync_profinet()
         try:
             errors = store.update(raw)
         except OSError as exc:
             return error(500, f"not saved to {store.path}: {exc}")
         if errors:
             return error(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
+        if bus is not None and "profibus_address" in raw:
+            bus.set_address(store.config.profibus_address)
+        if pn is not None and raw.keys() & {"profinet_name", "ip_address", "netmask", "gateway"}:
+            from ..fieldbus.profinet.station import NO_IP, IpSuite
+
+            cfg = store.config
+            suite = IpSuite(cfg.ip_address, cfg.netmask, cfg.gateway or NO_IP) \
+                if raw.keys() & {"ip_address", "netmask", "gateway"} else None
+            pn.apply_settings(cfg.profinet_name if "profinet_name" in raw else None, suite)
         body = view()
         body["changed"] = sorted(raw)
         return JSONResponse(body)

@@ -42,7 +42,8 @@ def router(ctx: WebContext) -> APIRouter:
         q = websocket.query_params
         want_fieldbus = q.get("fieldbus") == "1"
         log_after = _int(q.get("log"), ctx.log_feed.seq)
-        results_after = _int(q.get("results"), ctx.bridge.seq)
+        # a page passes the last result it saw; a larger number than ours is from before a restart
+        results_after = min(_int(q.get("results"), ctx.bridge.seq), ctx.bridge.seq)
         closed = asyncio.create_task(_wait_closed(websocket))
         try:
             while not ctx.closing.is_set() and not closed.done():

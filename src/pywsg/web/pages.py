@@ -25,11 +25,15 @@ HERE = Path(__file__).resolve().parent
 TEMPLATES = HERE / "templates"
 PROJECT_DOCS = HERE.parents[2] / "docs"  # source checkout only; the Help page says when missing
 
+# The menu bar of manual 003 §6, figure 1: "Settings | Diagnostics | Scripting | Motion | Help" (its text
+# says "Diagnosis -> Fieldbus Monitor"; the figure is the device's own menu: docs/fidelity.md), after
+# the Control Panel (the figure's title) and before pywsg's own Simulation page.
 MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
-    ("Settings", [("/settings/interface", "Command Interface"), ("/settings/motion", "Motion Configuration")]),
-    ("Diagnosis", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
+    ("Settings", [("/settings/interface", "Command Interface")]),
+    ("Diagnostics", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
     ("Scripting", [("/scripting", "Scripting")]),
+    ("Motion", [("/settings/motion", "Motion Configuration")]),
     ("Simulation", [("/simulation", "Simulation")]),
     ("Help", [("/help", "Documentation")]),
 ]
@@ -132,7 +136,11 @@ def router(ctx: WebContext) -> APIRouter:
         files = doc_files()
         docs = "".join(f"<li><a href='/docs/{escape(n)}'>{escape(n)}</a></li>" for n in files) or \
             "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
+        from ..fieldbus import descriptions
+
+        gsd = "".join(f"<li><a href='/downloads/descriptions/{escape(n)}' download>{escape(n)}</a></li>"
+                      for n in descriptions.names())
         return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
-                           reference=command_reference_html())
+                           reference=command_reference_html(), descriptions=gsd)
 
     return r

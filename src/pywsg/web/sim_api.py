@@ -14,6 +14,7 @@ from typing import Any, Literal
 from fastapi import APIRouter
 from pydantic import Field
 
+from ..testing.world import world_state
 from .api import StrictBody
 from .context import InputError, WebContext, motion_limits
 from .views import field_of_error
@@ -24,6 +25,7 @@ log = logging.getLogger(__name__)
 class PartBody(StrictBody):
     width: float = Field(gt=0, allow_inf_nan=False, description="part width, mm")
     stiffness: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="N/mm")
+    inside: bool = Field(default=False, description="gripped from inside (a ring); default from outside")
 
 
 class BlockBody(StrictBody):
@@ -57,6 +59,11 @@ def router(ctx: WebContext) -> APIRouter:
             field, reason = field_of_error(str(exc), ["width", "stiffness", "delta_c", "finger"])
             raise InputError({field: reason}) from None
 
+    @r.get("/world")
+    async def world() -> dict[str, Any]:
+        """The part, block, faults and temperature now (what the Simulation page shows)."""
+        return world_state(ctx.gripper)
+
     def done(action: str) -> dict[str, Any]:
         log.info("web: simulation: %s", action)
         return {"ok": True, "action": action, "state": ctx.state()}
@@ -65,9 +72,9 @@ def router(ctx: WebContext) -> APIRouter:
     async def place_part(body: PartBody) -> dict[str, Any]:
         motion_limits(ctx, body.width, None)
         if body.stiffness is None:
-            inject(faults().place_part, body.width)
+            inject(faults().place_part, body.width, inside=body.inside)
         else:
-            inject(faults().place_part, body.width, stiffness=body.stiffness)
+            inject(faults().place_part, body.width, stiffness=body.stiffness, inside=body.inside)
         return done(f"part of {body.width:g} mm placed")
 
     @r.delete("/part")

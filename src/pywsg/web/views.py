@@ -89,7 +89,9 @@ def state_view(snapshot: Any) -> dict[str, Any]:
 
 # Settings → Command Interface: these fields and any naming an interface; the rest is Motion
 # Configuration (device model, homing, clamping travel, defaults, fingers, script).
-_INTERFACE_FIELDS = {"crc_check", "fast_stop_on_disconnect"}
+_INTERFACE_FIELDS = {"crc_check", "fast_stop_on_disconnect", "location", "contact"}
+# set by their own command (51h Set Device Tag: Settings → Command Interface has a form for it)
+_NOT_IN_FORMS = {"tag"}
 _INTERFACE_WORDS = ("tcp", "udp", "crc", "checksum", "port", "interface", "disconnect", "baud", "modbus")
 
 # Labels, units and help for the fields the device's Settings has (pywsg.device.settings).
@@ -112,6 +114,8 @@ _KNOWN: dict[str, dict[str, Any]] = {
     "finger2": {"label": "Finger 2 type"},
     "script": {"label": "Script started at power-up", "help": "Firmware plugin; empty: none."},
     "auto_homing": {"label": "Auto-homing on start"},
+    "location": {"label": "Location", "help": "Shown in the header (up to 64 characters); empty: n/a."},
+    "contact": {"label": "Contact", "help": "Shown in the header (up to 64 characters); empty: n/a."},
 }
 
 
@@ -177,7 +181,7 @@ def settings_schema(settings: Any) -> list[dict[str, Any]]:
         hints = {}
     out: list[dict[str, Any]] = []
     for f in dataclasses.fields(settings):
-        if f.name.startswith("_"):
+        if f.name.startswith("_") or f.name in _NOT_IN_FORMS:
             continue
         known = _KNOWN.get(f.name, {})
         tp = hints.get(f.name, f.type)

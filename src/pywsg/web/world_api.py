@@ -4,14 +4,19 @@
 
     GET    /api/world              state: gripper state, width, force, temperature, part, obstacle, faults
     POST   /api/world/part         {"width": 22.0, "stiffness": 500}   put a part between the fingers
+                                   {"width": 40.0, "inside": true}     a ring, gripped from inside
     DELETE /api/world/part                                              take it away
     POST   /api/world/block        {"width": 30.0}                      a rigid obstacle at 30 mm
     DELETE /api/world/block
     POST   /api/world/fault        {"kind": "power"|"current"|"finger", "on": true, "finger": 1}
     POST   /api/world/heat         {"delta_c": 40.0}
+    POST   /api/world/slip         {"duration": 1.0}                    the held part slides out
+    POST   /api/world/disconnect                                        the gripper closes its connections
+    POST   /api/world/net          {"kind": "latency", "ms": 200, "jitter": 50, "on": true}
+    DELETE /api/world/net                                               every network fault off
 
-Replies are JSON: ``{"ok": true, "action": "part of 22 mm placed", "state": {...}}``; a refused value
-gives 422 ``{"detail": ..., "errors": {"width": "must be within 0..110 mm ..."}}``.
+Replies are JSON: ``{"ok": true, "action": "part of 22 mm placed (outside, between the fingers)",
+"state": {...}}``; a refused value gives 422 ``{"detail": ..., "errors": {"width": "must be within 0..110 mm ..."}}``.
 
 Access. This API is for programs, not browsers, so it needs neither cookies nor CSRF tokens:
 
@@ -102,7 +107,7 @@ async def _do(gripper: Any, request: Request, action: str, with_body: bool) -> J
         raw = await request.body()
         try:
             params = json.loads(raw or b"{}")
-        except (ValueError, UnicodeDecodeError):
+        except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting 1,000+ deep
             return _error(422, "invalid input: body is not JSON", {"_": "not JSON"})
         if not isinstance(params, dict):
             return _error(422, "invalid input: body must be a JSON object", {"_": "not an object"})
@@ -121,6 +126,10 @@ _ROUTES = (
     ("DELETE", "/block", "unblock", False),
     ("POST", "/fault", "fault", True),
     ("POST", "/heat", "heat", True),
+    ("POST", "/slip", "slip", True),
+    ("POST", "/disconnect", "disconnect", False),
+    ("POST", "/net", "net", True),
+    ("DELETE", "/net", "net_clear", False),
 )
 
 

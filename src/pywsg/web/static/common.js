@@ -12,6 +12,39 @@
   window.WSG = WSG;
   const TIMEOUT_MS = 8000;  // a command that gets no answer in this time fails with a message
 
+  // -- history across page changes: the last 30 s of width/force and the last command results ---------
+  // Every page records them from the live updates; sessionStorage carries them to the next page (per
+  // tab, per server), so the Control Panel's plots and results list survive a visit to another page.
+  const HISTORY_KEY = "pywsg.history";
+  const HISTORY_S = 31, HISTORY_RESULTS = 20;
+  function loadHistory() {
+    try {
+      const h = JSON.parse(sessionStorage.getItem(HISTORY_KEY) || "null");
+      if (h && Array.isArray(h.points) && Array.isArray(h.results)) return h;
+    } catch (e) { /* no storage or a bad entry: start empty */ }
+    return { points: [], results: [], seq: null };
+  }
+  const history = loadHistory();
+  WSG.history = history;
+  function record(msg) {
+    const s = msg.state;
+    if (s) {
+      history.points.push([msg.t, s.referenced === false ? null : s.width, s.force]);
+      const cut = msg.t - HISTORY_S;
+      while (history.points.length && history.points[0][0] < cut) history.points.shift();
+    }
+    for (const r of msg.results || []) {
+      history.results.push(r);
+      history.seq = r.seq;
+    }
+    if (history.results.length > HISTORY_RESULTS) history.results.splice(0, history.results.length - HISTORY_RESULTS);
+  }
+  function saveHistory() {
+    try { sessionStorage.setItem(HISTORY_KEY, JSON.stringify(history)); } catch (e) { /* storage full or off */ }
+  }
+  window.addEventListener("pagehide", saveHistory);
+  WSG.saveHistory = saveHistory;
+
   async function renewToken() {
     // after a restart of the gripper the old session is gone: /api/csrf hands out a new one
     // (its answer sets the new session cookie); on a non-loopback bind that means logging in again
@@ -93,8 +126,13 @@
 
   WSG.connect = function (params) {
     const proto = location.protocol === "https:" ? "wss:" : "ws:";
-    const query = new URLSearchParams(params || {}).toString();
-    const url = proto + "//" + location.host + "/ws" + (query ? "?" + query : "");
+    function url() {
+      // results newer than the last one this tab saw: none are lost while the next page loads
+      const p = Object.assign({}, params || {});
+      if (history.seq !== null && history.seq !== undefined) p.results = String(history.seq);
+      const query = new URLSearchParams(p).toString();
+      return proto + "//" + location.host + "/ws" + (query ? "?" + query : "");
+    }
     const dot = document.getElementById("ws-status");
     let ws;
     let wasLive = false;
@@ -106,12 +144,16 @@
           if (canWrite && !writable) banner("The session ended (the gripper restarted?): log in again.", "bad");
         } catch (e) { setTimeout(open, 1000); return; }
       }
-      ws = new WebSocket(url);
+      ws = new WebSocket(url());
       ws.onopen = function () {
         wasLive = true; WSG.live = true;
         dot.className = "dot on"; setStale(false);
         const b = document.getElementById("banner");
         if (b && b.dataset.conn) { banner(""); delete b.dataset.conn; }
+        // "not sent: no connection" beside a form is no longer true once the gripper is back
+        for (const out of document.querySelectorAll("output.result[data-conn]")) {
+          out.textContent = ""; out.className = "result"; delete out.dataset.conn;
+        }
       };
       ws.onclose = function () {
         WSG.live = false;
@@ -135,6 +177,7 @@
           }
         }
         if (msg.state) updateBox(msg.state);
+        record(msg);
         for (const fn of listeners) fn(msg);
       };
     }
@@ -146,7 +189,10 @@
     st.textContent = s.state;
     st.className = "state-" + s.state;
     // like the real panel: no position until the fingers are referenced (homing)
-    document.getElementById("g-width").textContent = s.referenced === false ? "[n/a]" : WSG.fmt(s.width, 2, "mm");
+    const width = s.referenced === false ? "[n/a]" : WSG.fmt(s.width, 2, "mm");
+    document.getElementById("g-width").textContent = width;
+    const qs = document.getElementById("q-state");
+    if (qs) { qs.textContent = s.state; qs.className = "state-" + s.state; document.getElementById("q-width").textContent = width; }
     document.getElementById("g-speed").textContent = WSG.fmt(s.speed, 1, "mm/s");
     document.getElementById("g-force").textContent = WSG.fmt(s.force, 1, "N");
     document.getElementById("g-temp").textContent = WSG.fmt(s.temperature, 1, "°C");
@@ -186,36 +232,75 @@
     const d = r.data;
     const set = function (id, v) { const el = document.getElementById(id); if (el) el.textContent = v === null || v === undefined || v === "" ? "–" : String(v); };
     set("id-tag", d.tag); set("id-serial", d.serial); set("id-fw", d.firmware); set("id-hw", d.hw_revision);
+    // 003 §6, figure 1: "Location: n/a, Contact: n/a" under the title
+    for (const k of ["location", "contact"]) {
+      const el = document.getElementById("id-" + k);
+      if (el) el.textContent = d[k] ? String(d[k]) : "n/a";
+    }
     const title = document.getElementById("model-title");
     if (title && d.model) title.textContent = d.model + " Control Panel";
   };
 
-  // -- menus (WAI-ARIA disclosure: a button per menu, Escape closes) -----------------------------
+  // -- menus (WAI-ARIA disclosure: a button per menu; arrow keys move within it, Escape or leaving
+  //    it with Tab closes it; near the right edge it opens leftwards) -------------------------------
   function setupMenus() {
-    const buttons = document.querySelectorAll("ul.nav button[aria-controls]");
+    const buttons = Array.from(document.querySelectorAll("ul.nav button[aria-controls]"));
+    const listOf = function (b) { return document.getElementById(b.getAttribute("aria-controls")); };
+    const linksOf = function (b) { return Array.from(listOf(b).querySelectorAll("a")); };
+    function fit(list) {
+      // open leftwards when the menu would run past the window's right edge (a phone)
+      list.classList.remove("menu-end");
+      const r = list.getBoundingClientRect();
+      if (r.width && r.right > document.documentElement.clientWidth) list.classList.add("menu-end");
+    }
+    function setOpen(b, open) {
+      b.setAttribute("aria-expanded", String(open));
+      const list = listOf(b);
+      list.hidden = !open;
+      if (open) fit(list);
+    }
     function close(except) {
-      for (const b of buttons) {
-        if (b === except) continue;
-        b.setAttribute("aria-expanded", "false");
-        document.getElementById(b.getAttribute("aria-controls")).hidden = true;
-      }
+      for (const b of buttons) if (b !== except && b.getAttribute("aria-expanded") === "true") setOpen(b, false);
     }
     for (const b of buttons) {
+      const li = b.parentElement;
       b.addEventListener("click", function () {
         const open = b.getAttribute("aria-expanded") !== "true";
         close(b);
-        b.setAttribute("aria-expanded", String(open));
-        document.getElementById(b.getAttribute("aria-controls")).hidden = !open;
+        setOpen(b, open);
+      });
+      // hover opens a menu without a click: keep it inside the window too
+      li.addEventListener("mouseenter", function () { fit(listOf(b)); });
+      li.addEventListener("focusout", function (ev) {
+        if (!ev.relatedTarget || !li.contains(ev.relatedTarget)) setOpen(b, false);
+      });
+      li.addEventListener("keydown", function (ev) {
+        const links = linksOf(b);
+        const i = links.indexOf(document.activeElement);
+        let to = null;
+        if (ev.key === "ArrowDown") to = i < 0 ? 0 : (i + 1) % links.length;
+        else if (ev.key === "ArrowUp") to = i < 0 ? links.length - 1 : (i - 1 + links.length) % links.length;
+        else if (ev.key === "Home" && i >= 0) to = 0;
+        else if (ev.key === "End" && i >= 0) to = links.length - 1;
+        if (to === null || !links.length) return;
+        ev.preventDefault();
+        if (b.getAttribute("aria-expanded") !== "true") { close(b); setOpen(b, true); }
+        links[to].focus();
       });
     }
-    document.addEventListener("keydown", function (ev) {
-      if (ev.key !== "Escape") return;
-      const open = Array.from(buttons).find(function (b) { return b.getAttribute("aria-expanded") === "true"; });
-      if (open) { close(null); open.focus(); }
-    });
     document.addEventListener("click", function (ev) {
       if (!ev.target.closest || !ev.target.closest("ul.nav")) close(null);
     });
+    return {
+      // Escape: close the open menu (focus back on its button); true when there was one
+      escape: function () {
+        const open = buttons.find(function (b) { return b.getAttribute("aria-expanded") === "true"; });
+        if (!open) return false;
+        close(null);
+        open.focus();
+        return true;
+      },
+    };
   }
 
   // -- forms -----------------------------------------------------------------------------------
@@ -270,6 +355,7 @@
         if (r.status === 202) out.dataset.seq = d.seq;
       } else {
         showResult(out, false, (d.status || (r.status ? "error " + r.status : "failed")) + ": " + (d.detail || ""));
+        if (r.status === 0) out.dataset.conn = "1";  // cleared when the live connection is back
       }
     }
     form.dispatchEvent(new CustomEvent("wsg:done", { detail: r }));  // pages refresh what it changed
@@ -290,11 +376,31 @@
     }
   }
   WSG.markScrollable = markScrollable;
+  let markPending = false;
+  function markSoon() {
+    // tables filled later (the Fieldbus Monitor's registers) are checked when they change
+    if (markPending) return;
+    markPending = true;
+    requestAnimationFrame(function () { markPending = false; markScrollable(); });
+  }
+
+  // the quick Stop bar: shown while the Gripper box's Stop button is scrolled out of sight (a phone)
+  function setupQuickbar() {
+    const bar = document.getElementById("quickbar");
+    const stop = document.getElementById("btn-stop");
+    if (!bar || !stop || !window.IntersectionObserver) return;
+    new IntersectionObserver(function (entries) {
+      for (const e of entries) bar.hidden = e.isIntersecting;
+    }).observe(stop);
+  }
 
   document.addEventListener("DOMContentLoaded", function () {
-    setupMenus();
+    const menus = setupMenus();
     markScrollable();
     window.addEventListener("resize", markScrollable);
+    const main = document.querySelector("main");
+    if (main && window.MutationObserver) new MutationObserver(markSoon).observe(main, { childList: true, subtree: true });
+    setupQuickbar();
     for (const form of document.querySelectorAll("form.cmd")) {
       form.noValidate = true;  // one error style: the server's reason beside the field, not a browser bubble
       form.addEventListener("submit", function (ev) {
@@ -307,6 +413,13 @@
     }
     const stop = document.getElementById("btn-stop");
     stop.addEventListener("click", function () { stopOrAck("/api/stop", "Stop"); });
+    const quickStop = document.getElementById("btn-stop-quick");
+    if (quickStop) quickStop.addEventListener("click", function () { stopOrAck("/api/stop", "Stop"); });
+    // Escape stops the fingers from anywhere on the page (first it closes an open menu)
+    document.addEventListener("keydown", function (ev) {
+      if (ev.key !== "Escape" || ev.defaultPrevented || menus.escape()) return;
+      if (canWrite) stopOrAck("/api/stop", "Stop");
+    });
     document.getElementById("btn-ack").addEventListener("click", function () { stopOrAck("/api/ack", "Ack"); });
     const skip = document.getElementById("skip-stop");
     if (skip) skip.addEventListener("click", function (ev) { ev.preventDefault(); stop.focus(); });

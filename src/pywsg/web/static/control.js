@@ -6,6 +6,18 @@
   let dirty = false;
   const FORMS = { HOMING: "form-home", PREPOSITION: "form-move", GRIP_PART: "form-grip", RELEASE_PART: "form-release" };
   WSG.plots = { width, force };
+  const ul = document.getElementById("results");
+  function showResult(r) {
+    const li = document.createElement("li");
+    li.textContent = new Date(r.time * 1000).toLocaleTimeString() + "  " + r.command + "  " + r.status +
+      (r.final ? "" : " (pending)");
+    li.className = r.status === "E_SUCCESS" || r.status === "E_CMD_PENDING" ? "ok" : "bad";
+    ul.insertBefore(li, ul.firstChild);
+    while (ul.children.length > 20) ul.removeChild(ul.lastChild);
+  }
+  // what this tab saw on the pages before (common.js keeps it across page changes)
+  for (const p of WSG.history.points) { width.push(p[0], p[1]); force.push(p[0], p[2]); }
+  for (const r of WSG.history.results) showResult(r);
   WSG.listeners.push(function (msg) {
     const s = msg.state;
     // no position before homing: the plot shows a gap, not 0.00 mm (the side box says [n/a])
@@ -14,13 +26,8 @@
     document.getElementById("width-now").textContent = s.referenced === false ? "[n/a]" : WSG.fmt(s.width, 2, "mm");
     document.getElementById("force-now").textContent = WSG.fmt(s.force, 1, "N");
     if (msg.results) {
-      const ul = document.getElementById("results");
       for (const r of msg.results) {
-        const li = document.createElement("li");
-        li.textContent = new Date(r.time * 1000).toLocaleTimeString() + "  " + r.command + "  " + r.status +
-          (r.final ? "" : " (pending)");
-        li.className = r.status === "E_SUCCESS" || r.status === "E_CMD_PENDING" ? "ok" : "bad";
-        ul.insertBefore(li, ul.firstChild);
+        showResult(r);
         // a motion's final reply replaces the E_CMD_PENDING shown beside its form
         // (only a final result newer than the form's own pending reply: not an older motion's)
         const form = r.final && document.getElementById(FORMS[r.command]);
@@ -29,7 +36,6 @@
           WSG.showResult(out, r.status === "E_SUCCESS", r.status);
           delete out.dataset.seq;
         }
-        while (ul.children.length > 20) ul.removeChild(ul.lastChild);
       }
     }
     dirty = true;
@@ -42,12 +48,9 @@
 
   // allowed ranges beside the inputs before a submit (53h system limits)
   WSG.api("GET", "/api/info").then(function (r) {
-    const lim = r.ok && r.data.limits;
-    if (!lim || lim.stroke === undefined) return;
-    const ranges = {
-      width: [0, lim.stroke, "mm"], speed: [lim.min_speed, lim.max_speed, "mm/s"],
-      force: [lim.min_force, Math.max(lim.ovr_force || 0, lim.nom_force || 0), "N"],
-    };
+    // the ranges the server checks (one source: /api/info "ranges"), so hint and refusal agree
+    const ranges = r.ok && r.data.ranges;
+    if (!ranges) return;
     for (const input of document.querySelectorAll("main form.cmd input[type=number]")) {
       const rg = ranges[input.name];
       if (!rg || rg[0] === undefined || rg[1] === undefined) continue;

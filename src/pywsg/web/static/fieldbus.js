@@ -47,30 +47,34 @@
     });
     tbody.parentElement.dataset.hex = image.hex;
   }
-  // Bus State (003 §6): station address from Settings → Command Interface, the rest from the server
-  function busState(bus) {
-    if (!bus) return;
-    const el = document.getElementById("fb-state");
-    const ago = bus.last_write === null ? "no write yet" :
-      "last write " + Math.max(0, bus.now - bus.last_write).toFixed(1) + " s ago";
-    const masters = bus.masters + (bus.masters === 1 ? " master" : " masters") + " connected";
-    el.textContent = bus.state === "online" ? "Online: " + masters + ", " + ago :
-      bus.state === "waiting" ? "Waiting: no Modbus master connected (" + ago + ")" :
-      "Offline: no Modbus/TCP server (wsg sim --modbus-port)";
-    el.dataset.state = bus.state;
-    document.getElementById("fb-interface").textContent = "Modbus/TCP" + (bus.port ? " (port " + bus.port + ")" : "");
+  // Bus State (003 §6): the rows each attached bus gives (its bus_state()), under the bus's name
+  function busState(buses) {
+    const tbody = document.querySelector("#fb-bus tbody");
+    tbody.textContent = "";
+    if (!buses || !buses.length) {
+      const tr = document.createElement("tr"); const td = document.createElement("td");
+      td.className = "muted"; td.dataset.row = "Interface state";
+      td.textContent = "Offline: no fieldbus (wsg sim --modbus-port N)";
+      tr.appendChild(td); tbody.appendChild(tr); return;
+    }
+    for (const bus of buses) {
+      if (buses.length > 1) {
+        const tr = document.createElement("tr"); const th = document.createElement("th");
+        th.colSpan = 2; th.textContent = bus.name; tr.appendChild(th); tbody.appendChild(tr);
+      }
+      for (const row of bus.rows) {
+        const tr = document.createElement("tr"); tr.dataset.bus = bus.name;
+        const th = document.createElement("th"); th.textContent = row.label;
+        const td = document.createElement("td"); td.textContent = row.text; td.dataset.row = row.label;
+        tr.appendChild(th); tr.appendChild(td); tbody.appendChild(tr);
+      }
+    }
   }
-  WSG.api("GET", "/api/interface").then(function (r) {
-    if (!r.ok) return;
-    document.getElementById("fb-station").textContent = r.data.values.profibus_address +
-      " (stored under Settings → Command Interface; Modbus/TCP answers any unit id)";
-  });
-  document.getElementById("fb-bitrate").textContent = "n/a: Modbus/TCP runs over Ethernet (a PROFIBUS WSG detects it)";
   let lastKey = "";
   WSG.listeners.push(function (msg) {
     const fb = msg.fieldbus;
     if (!fb) return;
-    busState(fb.bus);
+    busState(fb.buses);
     const key = JSON.stringify([fb.output.hex, fb.input.hex, fb.available]);
     if (key === lastKey) return;  // re-render only on change
     lastKey = key;

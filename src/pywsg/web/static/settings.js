@@ -143,6 +143,15 @@
       // when the common handler has the answer: show what the device has now
       document.getElementById(id).addEventListener("wsg:done", loadMotion);
     }
+    // the Overdrive selector shows what the device has (SF_OVERDRIVE_MODE) until someone changes it
+    const ovr = document.querySelector("#form-overdrive select[name=on]");
+    ovr.addEventListener("change", function () { ovr.dataset.edited = "1"; });
+    document.getElementById("form-overdrive").addEventListener("wsg:done", function () { delete ovr.dataset.edited; });
+    WSG.listeners.push(function (msg) {
+      if (!msg.state || ovr.dataset.edited) return;
+      const on = msg.state.flag_names.indexOf("SF_OVERDRIVE_MODE") >= 0 ? "true" : "false";
+      if (ovr.value !== on) ovr.value = on;
+    });
     const jogForm = document.getElementById("form-jog");
     jogForm.addEventListener("submit", function (ev) { ev.stopImmediatePropagation(); ev.preventDefault(); });
     const out = jogForm.querySelector("output.result");

@@ -1,0 +1,562 @@
+"""``AsyncGripper``: the asyncio driver."""
+
+from __future__ import annotations
+
+import asyncio
+import builtins
+import logging
+import time
+import warnings
+from collections.abc import AsyncIterator, Callable
+from types import TracebackType
+from typing import Any, TypeVar
+
+from ...errors import ConnectionLostError, TimeoutError, WsgError
+from ...protocol import (
+    ChecksumMismatch,
+    Command,
+    Frame,
+    FrameParser,
+    GarbageSkipped,
+    ParseError,
+    Status,
+    SystemFlag,
+    parse_datagram,
+)
+from .. import calls, lifetime
+from ..calls import Call
+from ..commlog import RX, TX, CommHook, CommLog, frame_log
+from ..core import (
+    DEFAULT_MOTION_TIMEOUT,
+    DEFAULT_TIMEOUT,
+    ReconnectPolicy,
+    bad_checksum,
+    decode_success,
+    frame_from,
+    is_success,
+    needs_flags,
+    raise_for,
+    status_of,
+    stream_id,
+)
+from ..demux import Demux
+from ..types import Reply, Sample, State
+from ..url import Endpoint, parse_url
+from .commands import AsyncCommands, AsyncFinger
+from .handles import AsyncMotion, AsyncStream, AWaiter
+from .transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
+
+__all__ = ["AsyncFinger", "AsyncGripper", "AsyncMotion", "AsyncStream", "ReconnectPolicy"]
+
+log = logging.getLogger("pywsg.client")
+T = TypeVar("T")
+
+_COMPACT_AT = 256  # timed waiters kept before the finished ones are swept out
+
+
+class AsyncGripper(AsyncCommands):
+    """asyncio driver for a WSG gripper. Open with ``await AsyncGripper.open(url)`` or
+    ``async with AsyncGripper(url) as g``.
+
+    ``timeout``: s to wait for an immediate reply; ``motion_timeout``: s to wait for a motion's
+    final frame; ``reconnect``: True or a :class:`ReconnectPolicy` to reconnect automatically after
+    a dropped connection (subscriptions are restored; a FAST STOP found is reported through
+    ``on_reconnect`` and the log, never acknowledged). ``on_reconnect(flags)`` is called with the
+    system flags found after every reconnection, ``on_connection_lost(exc)`` when the connection
+    drops; both may also be set as attributes later.
+    """
+
+    def __init__(self, url: str | Endpoint, *, timeout: float = DEFAULT_TIMEOUT,
+                 motion_timeout: float = DEFAULT_MOTION_TIMEOUT, connect_timeout: float = 5.0,
+                 reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
+                 on_reconnect: Callable[[SystemFlag], None] | None = None,
+                 on_connection_lost: Callable[[BaseException | None], None] | None = None) -> None:
+        self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.connect_timeout = connect_timeout
+        self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
+        self.verify_checksum = verify_checksum
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._transport: AsyncTransport | None = None
+        self._parser = FrameParser(verify_checksum)
+        self._demux = Demux(time.monotonic)
+        self._comm = CommLog()
+        self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
+        self._streams: dict[Command, list[AsyncStream]] = {}
+        self._closing = False
+        self._opened_by = 0  # pid that connected it (lifetime)
+        self._reconnect_task: asyncio.Task[None] | None = None
+        # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
+        # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
+        self._timed: list[AWaiter] = []
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at = 0.0
+        self._compact_at = _COMPACT_AT
+        self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
+        """Called with the system flags found after every reconnection."""
+        self.on_connection_lost: Callable[[BaseException | None], None] | None = on_connection_lost
+        self.last_error: BaseException | None = None
+
+    # ------------------------------------------------------------------ connection
+    @classmethod
+    async def open(cls, url: str | Endpoint, **kwargs: Any) -> AsyncGripper:
+        """Connect and return the driver."""
+        g = cls(url, **kwargs)
+        await g.connect()
+        return g
+
+    @property
+    def connected(self) -> bool:
+        return self._transport is not None
+
+    @property
+    def on_frame(self) -> CommHook | None:
+        """Communication log hook: called with a :class:`CommEntry` for every frame in and out."""
+        return self._comm.hook
+
+    @on_frame.setter
+    def on_frame(self, hook: CommHook | None) -> None:
+        self._comm.hook = hook
+
+    @property
+    def demux(self) -> Demux:
+        """The demultiplexer (counters ``unsolicited``, ``late``)."""
+        return self._demux
+
+    async def connect(self) -> None:
+        """Open the transport named by the URL."""
+        if self._transport is not None:
+            return
+        self._loop = asyncio.get_running_loop()
+        self._closing = False
+        self._parser = FrameParser(self.verify_checksum)
+        ep = self.endpoint
+        try:
+            if ep.scheme == "tcp":
+                self._transport = await TcpTransport.connect(ep, self._on_data, self._on_lost, self.connect_timeout)
+            elif ep.scheme == "udp":
+                self._transport = await UdpTransport.connect(ep, self._on_datagram, self._on_lost,
+                                                             self.connect_timeout)
+            elif ep.scheme == "can":
+                from .can_transport import CanTransport
+
+                self._transport = await CanTransport.connect(ep, self._on_data, self._on_lost, self.connect_timeout)
+            else:
+                self._transport = await SerialTransport.connect(ep, self._on_data, self._on_lost,
+                                                                self.connect_timeout)
+        except (OSError, builtins.TimeoutError) as exc:
+            raise ConnectionLostError(f"cannot connect to {ep}: {exc or type(exc).__name__}") from exc
+        lifetime.opened(self)
+        log.debug("connected to %s", ep)
+
+    async def close(self) -> None:
+        """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
+        A gripper still open when the interpreter exits is announced then (see docs/driver.md)."""
+        self._closing = True
+        lifetime.closed(self)
+        if self._reconnect_task is not None:
+            self._reconnect_task.cancel()
+            self._reconnect_task = None
+        t = self._transport
+        if t is None:
+            return
+        if self.endpoint.scheme == "tcp":
+            try:
+                await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+            except WsgError as exc:
+                log.debug("disconnect announcement: %s", exc)
+        self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
+
+    def _close_at_exit(self) -> None:
+        """No event loop runs any more: write 07h on the socket directly, without waiting for the reply."""
+        t, self._transport = getattr(self, "_transport", None), None
+        if t is None:
+            return
+        self._closing = True
+        if self.endpoint.scheme == "tcp":
+            lifetime.announce_on_socket(t.raw_socket())
+        try:
+            t.close()
+        except RuntimeError:  # the loop is closed: the socket goes with the process
+            pass
+
+    def __del__(self) -> None:
+        if getattr(self, "_transport", None) is None or not lifetime.owned(self):
+            return
+        warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
+                      "await close() or use 'async with AsyncGripper(...) as g'", ResourceWarning, stacklevel=1,
+                      source=self)
+        self._close_at_exit()
+
+    def _drop_transport(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
+        """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
+        ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
+        t, self._transport = self._transport, None
+        if t is not None:
+            t.close()
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._timed.clear()
+        self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
+        if end_streams:
+            for cmd, streams in list(self._streams.items()):
+                for st in streams:
+                    st.end(None if forget else ConnectionLostError(exc.detail, int(cmd)))
+        if forget:
+            for cmd, streams in list(self._streams.items()):
+                for st in streams:
+                    self._demux.remove_stream(cmd, st)
+            self._streams.clear()
+            self._subs.clear()
+
+    async def reconnect(self) -> SystemFlag:
+        """Close (announcing the disconnect if the link still works) and connect again; restore the
+        subscriptions. Returns the system flags found; a FAST STOP is reported (log warning,
+        ``on_reconnect``), never acknowledged."""
+        if self._transport is not None:
+            if self.endpoint.scheme == "tcp":
+                try:
+                    await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
+                except WsgError:
+                    pass
+            self._drop_transport(ConnectionLostError("reconnecting"), end_streams=False)
+        await self.connect()
+        for streams in self._streams.values():
+            for st in streams:
+                st.revive()
+        for cmd, (period, change_only) in list(self._subs.items()):
+            await self._run(calls.subscribe(cmd, period, change_only))
+        flags = await self.system_state()
+        if flags & SystemFlag.SF_FAST_STOP:
+            log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
+        else:
+            log.info("reconnected to %s", self.endpoint)
+        if self.on_reconnect is not None:
+            self.on_reconnect(flags)
+        return flags
+
+    async def _auto_reconnect(self) -> None:
+        policy = self.policy
+        assert policy is not None
+        delay = policy.delay
+        for attempt in range(1, policy.attempts + 1):
+            await asyncio.sleep(delay)
+            try:
+                await self.reconnect()
+                return
+            except WsgError as exc:
+                log.info("reconnect attempt %d to %s failed: %s", attempt, self.endpoint, exc)
+                self._drop_transport(ConnectionLostError(str(exc)), end_streams=False)
+                delay = min(delay * 2, policy.max_delay)
+        log.error("giving up reconnecting to %s", self.endpoint)
+        self._drop_transport(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True,
+                             forget=True)
+
+    async def __aenter__(self) -> AsyncGripper:
+        await self.connect()
+        return self
+
+    async def __aexit__(self, et: type[BaseException] | None, ev: BaseException | None,
+                        tb: TracebackType | None) -> None:
+        await self.close()
+
+    # ------------------------------------------------------------------ bytes in
+    def _on_data(self, data: memoryview) -> None:
+        parser = self._parser
+        if not parser.buffered:
+            frame = frame_from(bytes(data), parser.verify_checksum, parser.max_payload)
+            if frame is not None:
+                comm = self._comm
+                if comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG):
+                    comm.frame(RX, frame)
+                self._demux.feed(frame)
+                return
+        for ev in parser.feed(data):
+            self._on_event(ev)
+
+    def _on_datagram(self, data: bytes) -> None:
+        for ev in parse_datagram(data, self.verify_checksum):
+            self._on_event(ev)
+
+    def _on_event(self, ev: Frame | ParseError) -> None:
+        if isinstance(ev, Frame):
+            if self._comm.active:
+                self._comm.frame(RX, ev)
+            self._demux.feed(ev)
+            return
+        self._comm.error(RX, ev)
+        if isinstance(ev, ChecksumMismatch):
+            self._demux.feed_bad_checksum(ev, bad_checksum)
+        elif not isinstance(ev, GarbageSkipped):
+            log.warning("bad input from the gripper: %s", ev.message)
+
+    def _on_lost(self, exc: BaseException | None) -> None:
+        if self._transport is None:
+            return
+        reason = f"connection to {self.endpoint} lost" + (f": {exc}" if exc else "")
+        if not self._closing:
+            log.warning("%s", reason)
+        self.last_error = exc
+        auto = self.policy is not None and not self._closing
+        self._drop_transport(ConnectionLostError(reason), end_streams=not auto)
+        if self.on_connection_lost is not None:
+            self.on_connection_lost(exc)
+        if auto and self._reconnect_task is None and self._loop is not None:
+            self._reconnect_task = self._loop.create_task(self._auto_reconnect())
+            self._reconnect_task.add_done_callback(self._reconnect_done)
+
+    def _reconnect_done(self, _t: asyncio.Task[None]) -> None:
+        self._reconnect_task = None
+
+    # ------------------------------------------------------------------ requests
+    def _transport_or_raise(self, cid: int) -> AsyncTransport:
+        t = self._transport
+        if t is None:
+            raise ConnectionLostError("not connected" if not self.last_error else
+                                      f"not connected (last error: {self.last_error})", cid)
+        return t
+
+    async def _await_reconnect(self) -> None:
+        task = self._reconnect_task
+        if task is not None and self._transport is None:
+            try:
+                await asyncio.wait_for(asyncio.shield(task), self.connect_timeout)
+            except (builtins.TimeoutError, asyncio.CancelledError):
+                pass
+
+    def _send(self, call: Call[Any], timeout: float | None) -> tuple[AWaiter, AWaiter | None]:
+        """Send one request; return the waiter of its first reply (timed) and that of a pending final."""
+        t = self._transport_or_raise(call.command_id)
+        loop = self._loop
+        assert loop is not None
+        cid = call.command_id
+        final = AWaiter(cid, loop) if call.pending else None
+        w = AWaiter(cid, loop, final)
+        self._demux.expect(w)
+        wire = call.wire
+        if call.auto_read and self._subs:
+            wire = self._read_wire(call)
+        comm = self._comm
+        if comm.hook is not None or frame_log.isEnabledFor(logging.DEBUG):
+            comm.frame(TX, Frame(cid, wire[6:-2]))
+        # self._time(w, loop, timeout) inlined: this runs for every request
+        if timeout is None:
+            timeout = self.timeout
+        w.deadline = d = time.monotonic() + timeout
+        w.timeout = timeout
+        timed = self._timed
+        if len(timed) >= self._compact_at:
+            self._compact()
+        timed.append(w)
+        if self._timer is None or d < self._timer_at:
+            self._arm(loop, d)
+        t.write(wire)
+        return w, final
+
+    async def _exchange(self, call: Call[Any], timeout: float | None) -> tuple[Frame, AWaiter | None]:
+        """Send one request; return its first reply and the waiter of a pending final."""
+        if self._transport is None:
+            await self._await_reconnect()
+        w, final = self._send(call, timeout)
+        return await self._reply(w), final
+
+    def _read_wire(self, call: Call[Any]) -> bytes:
+        """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
+        sub = self._subs.get(Command(call.command_id))
+        return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
+
+    # -- timeouts
+    def _time(self, w: AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
+        """Fail ``w`` with TimeoutError if it is not done ``timeout`` s from now."""
+        # time.monotonic() is the loop's clock (asyncio's and uvloop's), without a method call
+        w.deadline = d = time.monotonic() + timeout
+        w.timeout = timeout
+        timed = self._timed
+        if len(timed) >= self._compact_at:
+            self._compact()
+        timed.append(w)
+        if self._timer is None or d < self._timer_at:
+            self._arm(loop, d)
+
+    def _compact(self) -> None:
+        """Sweep finished waiters out of ``_timed`` (amortised: the threshold follows the live count)."""
+        timed = self._timed
+        timed[:] = [x for x in timed if not x.done]
+        self._compact_at = max(_COMPACT_AT, 2 * len(timed))
+
+    def _arm(self, loop: asyncio.AbstractEventLoop, when: float) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer = loop.call_at(when, self._on_timer)
+        self._timer_at = when
+
+    def _on_timer(self) -> None:
+        self._timer = None
+        loop = self._loop
+        assert loop is not None
+        now = time.monotonic()
+        keep: list[AWaiter] = []
+        for w in self._timed:
+            if w.done:
+                continue
+            if w.deadline <= now:
+                self._expire(w, w.timeout)
+            else:
+                keep.append(w)
+        self._timed = keep
+        if keep:
+            self._arm(loop, min(w.deadline for w in keep))
+
+    async def _reply(self, w: AWaiter) -> Frame:
+        try:
+            await w.fut
+        except asyncio.CancelledError:
+            self._demux.abandon(w)
+            raise
+        if w.error is not None:
+            raise w.error
+        return w.frame  # type: ignore[return-value]  # set when done without error
+
+    async def _wait(self, w: AWaiter, timeout: float) -> Frame:
+        loop = self._loop
+        assert loop is not None
+        self._time(w, loop, timeout)
+        return await self._reply(w)
+
+    def _expire(self, w: AWaiter, timeout: float) -> None:
+        if not w.done:
+            w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s",
+                                from_device=False))
+            self._demux.abandon(w)
+
+    async def _run(self, call: Call[T], timeout: float | None = None) -> T:
+        """An immediate command: the decoded result, or the matching WsgError."""
+        if self._transport is None:
+            await self._await_reconnect()
+        w, _ = self._send(call, timeout)
+        try:
+            await w.fut
+        except asyncio.CancelledError:
+            self._demux.abandon(w)
+            raise
+        if w.error is not None:
+            raise w.error
+        frame = w.frame
+        assert frame is not None
+        p = frame.payload
+        if len(p) >= 2 and p[0] == 0 and p[1] == 0:  # E_SUCCESS
+            memo = call.memo
+            if memo is not None:  # decode_success's first step, inline
+                r = memo.get(p)
+                if r is not None:
+                    return r
+            return decode_success(call, frame)
+        return await self._result(call, frame)
+
+    async def _result(self, call: Call[T], frame: Frame) -> T:
+        if is_success(frame):
+            return decode_success(call, frame)
+        st = status_of(frame)
+        if st in call.none_on:
+            return None  # type: ignore[return-value]
+        flags = await self._flags_quietly() if needs_flags(call, st) else None
+        raise raise_for(call, frame, flags)
+
+    async def _run_motion(self, call: Call[Any], wait: bool, timeout: float | None) -> AsyncMotion:
+        frame, final = await self._exchange(call, None)
+        st = status_of(frame)
+        if st == Status.E_CMD_PENDING:
+            motion = AsyncMotion(self, call, final)
+        else:
+            if final is not None:
+                self._demux.forget_final(final)
+            if st != Status.E_SUCCESS:
+                flags = await self._flags_quietly()
+                raise raise_for(call, frame, flags)
+            motion = AsyncMotion(self, call, None, frame)
+        if wait:
+            await motion.wait(timeout)
+        return motion
+
+    async def _flags_quietly(self) -> SystemFlag | None:
+        """The system flags for an error report, or None if they cannot be read."""
+        if self._transport is None:
+            return None
+        try:
+            frame, _ = await self._exchange(calls.system_state(), min(self.timeout, 0.5))
+            if status_of(frame) == Status.E_SUCCESS:
+                return decode_success(calls.system_state(), frame)
+        except WsgError:
+            pass
+        return None
+
+    async def request(self, command_id: int, payload: bytes = b"", *, check: bool = True,
+                      timeout: float | None = None) -> Reply:
+        """Raw request for custom commands (e.g. an on-board script's ID). Waits for a final frame
+        after E_CMD_PENDING. With ``check`` an error status raises; else it is in ``Reply.status``."""
+        call = calls.raw(command_id, payload)
+        frame, final = await self._exchange(call, timeout)
+        if status_of(frame) == Status.E_CMD_PENDING and final is not None:
+            frame = await self._wait(final, self.motion_timeout if timeout is None else timeout)
+        elif final is not None:
+            self._demux.forget_final(final)
+        st = status_of(frame)
+        if check and st != Status.E_SUCCESS:
+            raise raise_for(call, frame, None)
+        return Reply(frame.command_id, st, frame.params)
+
+    async def state(self) -> State:
+        """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
+        w, s, f, gs, fl, te = await asyncio.gather(
+            self.width(), self.speed(), self.force(), self.gripper_state(), self.system_state(),
+            self.temperature())
+        return State(w, s, f, gs, fl, te)
+
+    # ------------------------------------------------------------------ streams
+    async def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False,
+                        maxlen: int = 10000) -> AsyncStream:
+        """Auto-update stream of ``what`` ("system_state", "gripper_state", "width", "speed", "force"
+        or the command ID), one packet at most every ``period`` s (>= 0.01), only on change if
+        ``change_only``. The first sample is the current value."""
+        cmd = stream_id(what)
+        stream = AsyncStream(self, cmd, maxlen)
+        self._streams.setdefault(cmd, []).append(stream)
+        self._demux.add_stream(cmd, stream)
+        try:
+            await self._run(calls.subscribe(cmd, period, change_only))
+        except BaseException:
+            self._demux.remove_stream(cmd, stream)
+            self._streams[cmd].remove(stream)
+            raise
+        self._subs[cmd] = (period, change_only)
+        return stream
+
+    async def _unsubscribe(self, stream: AsyncStream) -> None:
+        cmd = stream.command
+        self._demux.remove_stream(cmd, stream)
+        lst = self._streams.get(cmd, [])
+        if stream in lst:
+            lst.remove(stream)
+        if not lst:
+            self._streams.pop(cmd, None)
+            self._subs.pop(cmd, None)
+            if self._transport is not None:
+                try:
+                    await self._run(calls.unsubscribe(cmd))
+                except WsgError as exc:
+                    log.debug("unsubscribe %s: %s", cmd.name, exc)
+
+    async def stream(self, what: str | int, period: float = 0.01,
+                     change_only: bool = False) -> AsyncIterator[Sample]:
+        """``async for s in g.stream("width")``: subscribe, yield samples, unsubscribe at the end."""
+        s = await self.subscribe(what, period, change_only)
+        try:
+            async for sample in s:
+                yield sample
+        finally:
+            await s.close()
+
+    def __repr__(self) -> str:
+        return f"<AsyncGripper {self.endpoint} {'connected' if self.connected else 'closed'}>"

@@ -1,0 +1,501 @@
+"""The virtual WSG as a PROFINET IO device on one Linux network interface (asyncio).
+
+::
+
+    dev = await serve_profinet(gripper, "eth1", name="wsg50", controller=fieldbus_controller)
+    print(dev.line())      # PROFINET eth1 station 'wsg50' MAC 02:..:..
+    ...
+    await dev.close()
+
+One raw AF_PACKET socket bound to the interface (needs root or CAP_NET_RAW) carries everything: DCP,
+the cyclic RT frames, and ARP/UDP for the device's own IP suite — the host's addresses and routes are
+never changed (docs/fidelity.md). The 8 output bytes of each new output frame go to the same
+:class:`~pywsg.fieldbus.controller.FieldbusController` the other buses use; each input frame carries
+``controller.input_bytes()``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import logging
+import os
+import socket
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from ..controller import FieldbusController
+from ..image import OutputImage
+from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
+from .ar import AR, ARState, ConnectionManager, Identity, Listener
+from .dcp import OK, DcpHandlers, DcpResponder
+from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
+from .rpc import RPC_PORT
+from .rt import CyclicCodec
+from .station import NO_IP, IpSuite, PermanentStore, Station
+
+log = logging.getLogger(__name__)
+
+BUS_NAME = "PROFINET IO"
+ETH_P_ALL = 0x0003
+PACKET_OUTGOING = 4
+CCONTROL_PORT = 0xC001             # our UDP port for the ApplicationReady request (any would do)
+FRAMES_PER_WAKE = 64               # bounded work per readable event: a flood cannot starve the loop
+APP_READY_RETRIES, APP_READY_TIMEOUT_S = 5, 1.0
+SIGNAL_S = 3.0                     # how long the "flashing" shows after a DCP Signal
+#: Longest wait for the first output frame after Connect before the AR is aborted.
+FIRST_FRAME_S = 10.0
+
+
+class ProfinetError(RuntimeError):
+    """The device cannot start (interface missing, no permission)."""
+
+
+def interface_mac(iface: str) -> bytes:
+    """The interface's MAC address (``/sys/class/net/IFACE/address``)."""
+    try:
+        text = Path(f"/sys/class/net/{iface}/address").read_text().strip()
+    except OSError:
+        raise ProfinetError(f"PROFINET: no network interface {iface!r} (see `ip link`)") from None
+    return bytes.fromhex(text.replace(":", ""))
+
+
+def open_raw_socket(iface: str) -> socket.socket:
+    """A non-blocking raw socket receiving every frame of ``iface``."""
+    try:
+        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL))
+    except PermissionError:
+        raise ProfinetError(f"PROFINET on {iface} needs root or CAP_NET_RAW for a raw socket "
+                            f"(e.g. sudo setcap cap_net_raw+ep $(readlink -f $(which python3)))") from None
+    try:
+        sock.bind((iface, 0))
+    except OSError as exc:
+        sock.close()
+        raise ProfinetError(f"PROFINET: cannot bind to {iface}: {exc.strerror or exc}") from None
+    sock.setblocking(False)
+    return sock
+
+
+def _identity(gripper: Any) -> Identity:
+    profile = getattr(gripper, "profile", None)
+    name = str(getattr(profile, "name", "WSG 50"))
+    serial = str(getattr(gripper, "serial_number", "") or "")
+    fw = int(getattr(profile, "fw_version", 0x4000) or 0x4000)
+    return Identity(order_id=name, serial_number=serial,
+                    software_revision=("V", (fw >> 12) & 15, (fw >> 8) & 15, (fw >> 4) & 15))
+
+
+class ProfinetDevice:
+    """PROFINET IO device of one virtual gripper (a ``BusAdapter``: ``name``, ``bus_state()``, ``close()``)."""
+
+    name = BUS_NAME
+
+    def __init__(self, gripper: Any, iface: str, controller: FieldbusController, *, station_name: str | None = None,
+                 ip: IpSuite | None = None, store: PermanentStore | None = None) -> None:
+        self.gripper = gripper
+        self.iface = iface
+        self.controller = controller
+        self.store = store or PermanentStore(None)
+        mac = interface_mac(iface)
+        self.station = Station(mac=mac)
+        self.station.name = station_name if station_name is not None else (self.store.name() or "")
+        self.station.ip = ip or self.store.ip() or IpSuite()
+        self.ipstack = IpStack(mac, self.station.ip.ip)
+        self.dcp = DcpResponder(self.station, DcpHandlers(self._set_name, self._set_ip, self._signal, self._reset))
+        self.cm = ConnectionManager(self.station, _identity(gripper),
+                                    Listener(self._connected, self._prm_end, self._released))
+        self.codec: CyclicCodec | None = None
+        self.alarms: AlarmChannel | None = None
+        self.sock: socket.socket | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._tick: asyncio.TimerHandle | None = None
+        self._app_ready: tuple[uuid.UUID, int, AR] | None = None   # activity, tries, AR
+        self._app_ready_timer: asyncio.TimerHandle | None = None
+        self._last_outputs: bytes | None = None
+        self._signal_until = 0.0
+        # bus statistics (Fieldbus Monitor)
+        self.frames_in = self.frames_out = self.missed = self.watchdog_expiries = 0
+        self.ar_count = 0
+        self.last_abort = ""
+        self._last_counter: int | None = None
+        self._last_frame_t = 0.0
+        self._ar_start = 0.0
+        self._seq = 0
+        self._diag_ready = False
+        self._next = 0.0
+        self._house: asyncio.TimerHandle | None = None
+
+    # --- life cycle -------------------------------------------------------------------------------
+    async def start(self) -> ProfinetDevice:
+        self._loop = asyncio.get_running_loop()
+        self.sock = open_raw_socket(self.iface)
+        self._loop.add_reader(self.sock.fileno(), self._readable)
+        self._house = self._loop.call_later(1.0, self._housekeeping)
+        attach = getattr(self.controller, "attach_bus", None)
+        if attach is not None:
+            attach(self)
+        log.info("PROFINET: %s", self.line())
+        return self
+
+    def url(self) -> str:
+        """``profinet://IFACE/STATION`` (what ``wsg plc-demo --url`` takes)."""
+        return f"profinet://{self.iface}/{self.station.name}"
+
+    def line(self) -> str:
+        """The one line ``wsg sim`` prints: URL, then MAC and IP."""
+        ip = self.station.ip.ip if self.station.ip.ip != NO_IP else "none yet, set by DCP"
+        unnamed = "" if self.station.name else "unnamed: set the name by DCP, "
+        return f"{self.url()} ({unnamed}MAC {mac_text(self.station.mac)}, IP {ip})"
+
+    async def close(self) -> None:
+        if self.cm.io_ar is not None:
+            self.cm.drop(self.cm.io_ar, "device stopped")
+        if self._tick is not None:
+            self._tick.cancel()
+        if self._app_ready_timer is not None:
+            self._app_ready_timer.cancel()
+        if self._house is not None:
+            self._house.cancel()
+        if self.sock is not None:
+            if self._loop is not None:
+                self._loop.remove_reader(self.sock.fileno())
+            self.sock.close()
+            self.sock = None
+        detach = getattr(self.controller, "detach_bus", None)
+        if detach is not None:
+            detach(self)
+
+    def bus_state(self) -> dict[str, str]:
+        """Rows for the Fieldbus Monitor's Bus State."""
+        ar = self.cm.io_ar
+        state = "No connection (waiting for a controller)" if ar is None else ar.state.value
+        rows = {
+            "Interface": self.iface,
+            "Station name": self.station.name or "(none)",
+            "IP address": f"{self.station.ip.ip} / {self.station.ip.mask}" if self.ipstack.has_ip else "(none)",
+            "MAC address": mac_text(self.station.mac),
+            "AR state": state,
+        }
+        if ar is not None and ar.output_cr is not None:
+            rows["Controller"] = f"{ar.request.station_name} {ar.controller_ip} ({mac_text(ar.controller_mac)})"
+            rows["Cycle time"] = f"{ar.output_cr.cycle_s * 1000:g} ms"
+        rows["Frames in / out"] = f"{self.frames_in} / {self.frames_out}"
+        rows["Missed frames"] = str(self.missed)
+        rows["Watchdog expiries"] = str(self.watchdog_expiries)
+        if self.alarms is not None and self.alarms.sent:
+            rows["Diagnosis alarms"] = f"{self.alarms.acked} acknowledged of {self.alarms.sent} sent"
+        if self.last_abort:
+            rows["Last AR end"] = self.last_abort
+        if time.monotonic() < self._signal_until:
+            rows["Signal"] = "flashing (DCP Signal)"
+        return rows
+
+    # --- receive --------------------------------------------------------------------------------
+    def _readable(self) -> None:
+        sock = self.sock
+        if sock is None:
+            return
+        for _ in range(FRAMES_PER_WAKE):
+            try:
+                data, addr = sock.recvfrom(2048)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                if exc.errno == errno.ENETDOWN:
+                    return
+                log.warning("PROFINET: receive on %s: %s", self.iface, exc)
+                return
+            if addr[2] == PACKET_OUTGOING:
+                continue
+            try:
+                self._frame(data)
+            except Exception:   # a frame must never stop the device: log it and go on
+                log.exception("PROFINET: frame of %d bytes not handled", len(data))
+
+    def _frame(self, data: bytes) -> None:
+        frame = parse_frame(data)
+        if frame is None:
+            return
+        if frame.ethertype == ETH_P_PNIO:
+            if len(frame.payload) < 2:
+                return
+            fid = int.from_bytes(frame.payload[:2], "big")
+            if 0xFEFC <= fid <= 0xFEFF:
+                for delay, reply in self.dcp.handle(frame):
+                    if delay and self._loop is not None:
+                        self._loop.call_later(delay, self._send, reply)
+                    else:
+                        self._send(reply)
+            elif self.codec is not None and frame.src == self.codec.ar.controller_mac:
+                if fid in (FID_ALARM_LOW, FID_ALARM_HIGH):
+                    if self.alarms is not None:
+                        for reply in self.alarms.handle(frame.payload[2:]):
+                            self._send(reply)
+                else:
+                    self._output_frame(frame.payload)
+            return
+        if frame.ethertype in (ETH_P_IP, 0x0806):
+            replies, udp = self.ipstack.handle(frame)
+            for r in replies:
+                self._send(r)
+            if udp is None:
+                return
+            if udp.dport == RPC_PORT:
+                answer = self.cm.handle(udp.data, udp.src_ip, udp.sport)
+                if answer is not None:
+                    self._send(self.ipstack.udp(udp.src_mac, udp.src_ip, RPC_PORT, udp.sport, answer))
+            elif udp.dport == CCONTROL_PORT and self._app_ready is not None:
+                activity, _tries, ar = self._app_ready
+                done = ConnectionManager.application_ready_done(udp.data, activity)
+                if done is True and ar is self.cm.io_ar:
+                    self._app_ready = None
+                    ar.state = ARState.DATA
+                    log.info("PROFINET: ApplicationReady confirmed by %s: data exchange", ar.controller_ip)
+                elif done is False:
+                    self._abort(ar, "the controller refused ApplicationReady")
+
+    def _output_frame(self, payload: bytes) -> None:
+        codec = self.codec
+        assert codec is not None
+        out = codec.output(payload)
+        if out is None:
+            return
+        self.frames_in += 1
+        self._last_frame_t = time.monotonic()
+        if self._last_counter is not None:
+            gap = (out.cycle_counter - self._last_counter) & 0xFFFF
+            step = codec.out_cr.send_clock_factor * codec.out_cr.reduction_ratio
+            if gap > step and step:
+                self.missed += gap // step - 1
+        self._last_counter = out.cycle_counter
+        if out.outputs is not None and out.outputs != self._last_outputs:
+            self._last_outputs = out.outputs
+            self.controller.write_outputs(OutputImage.unpack(out.outputs))
+
+    def _send(self, frame: bytes) -> None:
+        if self.sock is None:
+            return
+        try:
+            self.sock.send(frame)
+        except (BlockingIOError, InterruptedError):
+            log.debug("PROFINET: send buffer full, frame dropped")
+        except OSError as exc:
+            log.warning("PROFINET: send on %s: %s", self.iface, exc.strerror or exc)
+
+    # --- web interface (Settings → Command Interface, 003 §3.2) ------------------------------------------
+    def apply_settings(self, name: str | None = None, ip: IpSuite | None = None) -> None:
+        """New NameOfStation and/or IP suite from the web interface (already stored by it). An AR in
+        progress ends: its controller addressed the old station (the 003 §3.2 warning)."""
+        changed = (name is not None and name != self.station.name) or (ip is not None and ip != self.station.ip)
+        if not changed:
+            return
+        if self.cm.io_ar is not None:
+            self._abort(self.cm.io_ar, "station name or IP changed in the web interface")
+        if name is not None:
+            self.station.name = name
+        if ip is not None:
+            self.station.ip = ip
+            self.ipstack.ip = ip.ip
+        self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
+
+    # --- DCP Set ----------------------------------------------------------------------------------
+    def _set_name(self, name: str, permanent: bool) -> int:
+        if self.cm.io_ar is not None and name != self.station.name:
+            log.warning("PROFINET: DCP Set NameOfStation refused: an AR is established")
+            return 6   # "in operation"
+        self.station.name = name
+        if permanent:
+            self.store.save(profinet_name=name)
+        self._syslog(f"PROFINET: NameOfStation set to '{name}' ({'permanent' if permanent else 'temporary'})")
+        return OK
+
+    def _set_ip(self, suite: IpSuite, permanent: bool) -> int:
+        if self.cm.io_ar is not None and suite != self.station.ip:
+            log.warning("PROFINET: DCP Set IP refused: an AR is established")
+            return 6
+        self.station.ip = suite
+        self.ipstack.ip = suite.ip
+        if permanent:
+            self.store.save(ip_address=suite.ip, netmask=suite.mask,
+                            gateway="" if suite.gateway == NO_IP else suite.gateway)
+        self._syslog(f"PROFINET: IP suite set to {suite.ip}/{suite.mask} gateway {suite.gateway} "
+                     f"({'permanent' if permanent else 'temporary'}; the host's addresses are unchanged)")
+        return OK
+
+    def _signal(self) -> None:
+        self._signal_until = time.monotonic() + SIGNAL_S
+        self._syslog("PROFINET: DCP Signal: the LED flashes (identify this gripper)")
+
+    def _reset(self, mode: int) -> int:
+        if self.cm.io_ar is not None:
+            self._abort(self.cm.io_ar, "reset to factory by DCP")
+        self.station.name = ""
+        self.station.ip = IpSuite()
+        self.ipstack.ip = NO_IP
+        self.store.save(profinet_name="")
+        self._syslog(f"PROFINET: reset to factory settings (mode {mode}): station name and IP cleared")
+        return OK
+
+    def _syslog(self, text: str) -> None:
+        log.info("%s", text)
+        glog = getattr(self.gripper, "log", None)
+        add = getattr(glog, "add", None)
+        if add is not None:
+            from ...device.log import LogLevel
+
+            clock = getattr(self.gripper, "clock", time.monotonic)
+            add(clock(), LogLevel.INFO, text)
+
+    # --- AR events ----------------------------------------------------------------------------------
+    def _connected(self, ar: AR) -> None:
+        self.codec = CyclicCodec(ar, self.station.mac)
+        self.alarms = AlarmChannel(ar, self.station.mac, self.cm.alarm_ref) if ar.alarm is not None else None
+        self._diag_ready = False
+        self.ar_count += 1
+        self._last_counter = None
+        self._last_outputs = None
+        self._ar_start = time.monotonic()
+        self._last_frame_t = 0.0
+        self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
+        if self._loop is not None:
+            if self._tick is not None:
+                self._tick.cancel()
+            self._next = self._loop.time()
+            self._tick = self._loop.call_at(self._next, self._cycle)
+
+    def _prm_end(self, ar: AR) -> None:
+        if self.codec is not None and ar is self.codec.ar:
+            self.codec.provider_ok = True
+        self._seq += 1
+        self._app_ready = (uuid.uuid4(), 0, ar)
+        if self._loop is not None:
+            self._loop.call_soon(self._send_app_ready)
+
+    def _send_app_ready(self) -> None:
+        if self._app_ready is None:
+            return
+        activity, tries, ar = self._app_ready
+        if ar is not self.cm.io_ar:
+            self._app_ready = None
+            return
+        if tries >= APP_READY_RETRIES:
+            self._abort(ar, "no answer to ApplicationReady")
+            return
+        self._app_ready = (activity, tries + 1, ar)
+        mac = self.ipstack.neighbours.get(ar.controller_ip)
+        if mac is None:
+            self._send(self.ipstack.arp_request(ar.controller_ip))
+        else:
+            data = self.cm.application_ready(ar, activity, self._seq)
+            self._send(self.ipstack.udp(mac, ar.controller_ip, CCONTROL_PORT, RPC_PORT, data))
+        if self._loop is not None:
+            self._app_ready_timer = self._loop.call_later(APP_READY_TIMEOUT_S, self._send_app_ready)
+
+    def _released(self, ar: AR, why: str) -> None:
+        if self.codec is not None and ar is self.codec.ar:
+            self.codec = None
+            self.alarms = None
+            if self._tick is not None:
+                self._tick.cancel()
+                self._tick = None
+        self.last_abort = why
+        if ar.is_io:
+            self._syslog(f"PROFINET: AR of {ar.controller_ip} ended: {why}")
+            if why != "released by the controller":
+                self._fail_safe(why)
+
+    def _abort(self, ar: AR, why: str) -> None:
+        self.cm.drop(ar, why)
+
+    def _fail_safe(self, reason: str) -> None:
+        fail_safe = getattr(self.controller, "fail_safe", None)
+        if fail_safe is not None:
+            fail_safe(BUS_NAME, reason)
+        else:   # until the shared rule lands: what a lost Modbus/TCP master does (docs/fidelity.md)
+            log.warning("PROFINET: controller lost (%s); no fail_safe on this FieldbusController", reason)
+
+    # --- cyclic -----------------------------------------------------------------------------------------
+    def _cycle(self) -> None:
+        codec, loop = self.codec, self._loop
+        if codec is None or loop is None:
+            return
+        ar = codec.ar
+        self._readable()   # frames that waited while the loop was busy count before the watchdog judges
+        if self.codec is not codec:
+            return
+        now = time.monotonic()
+        out_cr = codec.out_cr
+        if self._last_frame_t:
+            hold = out_cr.data_hold_factor * out_cr.cycle_s
+            if now - self._last_frame_t > hold:
+                self.watchdog_expiries += 1
+                self._abort(ar, f"watchdog: no output frame for {(now - self._last_frame_t) * 1000:.0f} ms "
+                                f"(data hold time {hold * 1000:g} ms)")
+                return
+        elif now - self._ar_start > max(FIRST_FRAME_S, ar.request.timeout_factor * 0.1):
+            self.watchdog_expiries += 1
+            self._abort(ar, "no output frame from the controller after Connect")
+            return
+        try:
+            inputs = self.controller.input_bytes()
+        except Exception:
+            log.exception("PROFINET: input image")
+            inputs = bytes(12)
+        self._send(codec.input_frame(inputs))
+        self.frames_out += 1
+        if self.alarms is not None:
+            self._diagnosis(ar, inputs)
+        cycle = codec.in_cr.cycle_s
+        self._next += cycle
+        t = loop.time()
+        if self._next < t - cycle:   # fell behind (a long pause): restart the schedule, do not burst
+            self._next = t + cycle
+        self._tick = loop.call_at(self._next, self._cycle)
+
+    def _diagnosis(self, ar: AR, inputs: bytes) -> None:
+        """Diagnosis alarms for listed error flags rising or clearing (002 §3.3), once data exchange runs."""
+        alarms = self.alarms
+        assert alarms is not None
+        sysstate = int.from_bytes(inputs[2:6], "little")
+        if not self._diag_ready:
+            if ar.state != ARState.DATA:
+                return
+            self._diag_ready = True
+            # flags already set when data exchange starts are no news: the controller sees them in SYSSTATE
+            alarms.active = sysstate & DIAGNOSIS_FLAGS
+        alarms.flags(sysstate)
+        for frame in alarms.poll():
+            self._send(frame)
+        if alarms.failed:
+            self._abort(ar, "diagnosis alarm not acknowledged (alarm CR timeout)")
+
+    def _housekeeping(self) -> None:
+        """Once a second: end a device-access AR whose controller went quiet."""
+        ar = self.cm.access_ar
+        if ar is not None and time.monotonic() - ar.last_activity > max(ar.request.timeout_factor * 0.1, 1.0):
+            self.cm.drop(ar, "device-access AR idle (CMInitiatorActivityTimeout)")
+        if self._loop is not None and self.sock is not None:
+            self._house = self._loop.call_later(1.0, self._housekeeping)
+
+
+async def serve_profinet(gripper: Any, iface: str, controller: FieldbusController | None = None, *,
+                         station_name: str | None = None, ip: IpSuite | None = None,
+                         store_path: Path | None = None) -> ProfinetDevice:
+    """Start the PROFINET IO device of ``gripper`` on ``iface`` (a controller is made if none is given)."""
+    if controller is None:
+        controller = FieldbusController(gripper)
+    dev = ProfinetDevice(gripper, iface, controller, station_name=station_name, ip=ip,
+                         store=PermanentStore(store_path))
+    return await dev.start()
+
+
+def has_raw_socket_permission() -> bool:
+    """True when this process may open raw sockets (root or CAP_NET_RAW)."""
+    try:
+        socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ETH_P_ALL)).close()
+    except PermissionError:
+        return False
+    return os.name == "posix"
+

@@ -1,0 +1,211 @@
+"""The controller side of the PROFINET wire tests, run inside the controller namespace.
+
+``python pn_controller.py IFACE SCENARIO ARGS...`` prints one JSON line with what it saw. It uses
+profinet-py (a real IO controller) for DCP, records and the AR; the abuse scenario writes raw frames.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import random
+import socket
+import struct
+import sys
+import time
+from typing import Any
+
+from profinet import IOCRSetup, ProfinetDevice, dcp
+from profinet.gsdml import load_gsdml
+from profinet.util import ethernet_socket, get_mac
+
+from pywsg.fieldbus.image import InputImage
+from pywsg.fieldbus.plc import GrippingCycle
+from pywsg.fieldbus.profinet.exchange import ProfinetExchange, gsdml_path
+
+IFACE = sys.argv[1]
+
+
+def out(**kw: Any) -> None:
+    print(json.dumps(kw, default=str), flush=True)
+
+
+def identify(name: str) -> None:
+    """DCP Identify by NameOfStation, then I&M0 over a device-access AR."""
+    t0 = time.monotonic()
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    i = dev._info
+    found = {"name": i.name, "ip": i.ip, "mac": i.mac, "type": i.device_type, "roles": i.device_roles,
+             "vendor_id": i.vendor_high << 8 | i.vendor_low, "device_id": i.device_high << 8 | i.device_low,
+             "dcp_s": round(time.monotonic() - t0, 2)}
+    with dev:
+        m = dev.read_im0()
+    out(**found, im0={"vendor_id": m.vendor_id_high << 8 | m.vendor_id_low, "order_id": m.order_id.decode().strip(),
+                      "serial": m.im_serial_number.decode().strip(), "hw": m.im_hardware_revision})
+
+
+def setup(cycle_ms: int) -> IOCRSetup:
+    """An AR from pywsg's GSDML; watchdog and data hold ≥ 200 ms, as ProfinetExchange uses (a loaded
+    2-core machine stalls a Python controller's threads for tens of ms)."""
+    gsdml = load_gsdml(str(gsdml_path()))
+    factor = max(3, -(-200 // cycle_ms))
+    return IOCRSetup(slots=gsdml.build_io_slots(), reduction_ratio=cycle_ms, watchdog_factor=factor,
+                     data_hold_factor=factor)
+
+
+async def _scl(name: str, cycles: int, cycle_ms: int) -> None:
+    ex = await ProfinetExchange.open(f"profinet://{IFACE}/{name}?cycle_ms={cycle_ms}")
+    cyc = GrippingCycle(log=lambda s: print(s, file=sys.stderr))
+    t0 = time.monotonic()
+    try:
+        while cyc.cycles < cycles and time.monotonic() - t0 < 40:
+            inp = InputImage.unpack(await ex.read_inputs())
+            await ex.write_outputs(cyc.step(inp, time.monotonic()).pack())
+    finally:
+        await ex.close()
+    out(cycles=cyc.cycles, holds=cyc.holds, errors=cyc.error_count, no_part=cyc.no_part,
+        seconds=round(time.monotonic() - t0, 2))
+
+
+def hold(name: str, seconds: float, cycle_ms: int = 16) -> None:
+    """Hold an AR for ``seconds`` and report the inputs; 'silent': then vanish without a Release."""
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    cyc = dev.start_cyclic(setup(cycle_ms), start_alarm_listener=False)
+    print("AR up", file=sys.stderr, flush=True)
+    time.sleep(seconds)
+    data = cyc.get_input_data(1, 1)
+    if len(sys.argv) > 5 and sys.argv[5] == "silent":
+        out(inputs=data.hex() if data else None, stats=str(cyc.stats))
+        os._exit(0)   # no Release, no stop frames: the device's watchdog must notice
+    stats, state = cyc.stats, cyc.state.value
+    cyc.stop()
+    dev.close()
+    out(inputs=data.hex() if data else None, received=stats.frames_received, missed=stats.frames_missed,
+        state=state)
+
+
+def diag(name: str) -> None:
+    """FASTSTOP raised and acknowledged over the AR: the diagnosis alarms the controller receives."""
+    got: list[dict[str, Any]] = []
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    dev.on_alarm(lambda a: got.append({
+        "type": a.alarm_type, "slot": a.slot_number, "subslot": a.subslot_number,
+        "items": [(getattr(i, "channel_error_type", None), getattr(i, "channel_properties", 0) >> 11 & 3)
+                  for i in a.items]}))
+    cyc = dev.start_cyclic(setup(16))
+    time.sleep(0.3)
+    for out_bytes, pause in ((bytes([0x20, 0, 0, 0, 0, 0, 0, 0]), 0.6),   # FASTSTOP edge
+                             (bytes(8), 0.2),                              # FASTSTOP back to 0
+                             (bytes([0x10, 0, 0, 0, 0, 0, 0, 0]), 0.6)):   # STOP/ACK: acknowledge
+        cyc.set_output_data(1, 1, out_bytes)
+        time.sleep(pause)
+    state = cyc.state.value
+    cyc.stop()
+    dev.close()
+    out(alarms=got, state=state)
+
+
+def dcp_scenario(name: str, mac: str) -> None:
+    """Set name/IP (temporary and permanent), Get, Signal, Reset to factory — through profinet-py."""
+    sock = ethernet_socket(IFACE, 3)
+    src = get_mac(IFACE)
+    res: dict[str, Any] = {}
+    res["get_name"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
+    res["set_name"] = dcp.set_param(sock, src, mac, "name", "renamed-wsg", permanent=True)
+    res["found_renamed"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.mac
+    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0")
+    res["ip_after"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.ip
+    res["signal"] = dcp.signal_device(sock, src, mac)
+    res["reset"] = dcp.reset_to_factory(sock, src, mac)
+    res["name_after_reset"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
+    out(**res)
+
+
+def _raw() -> tuple[socket.socket, bytes]:
+    s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(0x8892))
+    s.bind((IFACE, 0))
+    return s, get_mac(IFACE)
+
+
+def flood(kind: str, count: int, mac: str) -> None:
+    """Send ``count`` frames of one kind as fast as possible; report how long it took."""
+    s, src = _raw()
+    dst = bytes.fromhex(mac.replace(":", ""))
+    rnd = random.Random(7)
+    frames: list[bytes] = []
+    for i in range(min(count, 512)):
+        if kind == "garbage":   # random 8892h frames, many with DCP and RT frame IDs and lying lengths
+            fid = rnd.choice([0xFEFE, 0xFEFD, 0xFEFC, 0xC000, 0x8000, 0xFC01, rnd.randrange(65536)])
+            body = struct.pack("!H", fid) + bytes(rnd.randrange(256) for _ in range(rnd.randrange(0, 80)))
+            frames.append(rnd.choice([dst, b"\x01\x0e\xcf\x00\x00\x00"]) + src + b"\x88\x92" + body)
+        elif kind == "identify":   # DCP Identify All to the multicast address
+            frames.append(b"\x01\x0e\xcf\x00\x00\x00" + src + b"\x88\x92"
+                          + struct.pack("!HBBIHH", 0xFEFE, 5, 0, i, 1, 4) + b"\xff\xff\x00\x00")
+        else:   # DCP Identify for a name that is not ours: parsed, filtered, not answered
+            frames.append(b"\x01\x0e\xcf\x00\x00\x00" + src + b"\x88\x92"
+                          + struct.pack("!HBBIHH", 0xFEFE, 5, 0, i, 1, 8) + b"\x02\x02\x00\x04nope")
+    t0 = time.monotonic()
+    for i in range(count):
+        f = frames[i % len(frames)]
+        s.send(f + bytes(max(0, 60 - len(f))))
+    out(sent=count, seconds=time.monotonic() - t0)
+
+
+def rpc_abuse(device_ip: str) -> None:
+    """Malformed RPC datagrams, then a well-formed Connect a second controller would send."""
+    u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    u.settimeout(0.5)
+    rnd = random.Random(11)
+    answers = 0
+    for n in (0, 1, 79, 80, 81, 200, 1400):
+        for _ in range(20):
+            data = bytes(rnd.randrange(256) for _ in range(n))
+            if n >= 80 and rnd.random() < 0.5:   # a plausible header with a lying body length
+                data = bytes([4, 0, 0x20, 0, 0x10, 0, 0, 0]) + data[8:74] + b"\xff\xff" + data[76:]
+            u.sendto(data, (device_ip, 34964))
+    try:
+        while True:
+            u.recvfrom(4096)
+            answers += 1
+    except TimeoutError:
+        pass
+    out(answers_to_garbage=answers)
+
+
+def second_connect(name: str) -> None:
+    """A second controller asks for the IO AR while another one holds it: the PNIO status it gets."""
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    try:
+        dev.start_cyclic(setup(16), start_alarm_listener=False)
+        out(refused=False, error="")
+    except Exception as exc:   # profinet-py wraps the device's negative Connect response
+        out(refused=True, error=str(exc))
+    finally:
+        dev.close()
+
+
+def main() -> None:
+    scenario, args = sys.argv[2], sys.argv[3:]
+    if scenario == "identify":
+        identify(args[0])
+    elif scenario == "scl":
+        asyncio.run(_scl(args[0], int(args[1]), int(args[2])))
+    elif scenario == "hold":
+        hold(args[0], float(args[1]))   # argv[5] "silent": vanish without a Release
+    elif scenario == "diag":
+        diag(args[0])
+    elif scenario == "dcp":
+        dcp_scenario(args[0], args[1])
+    elif scenario == "flood":
+        flood(args[0], int(args[1]), args[2])
+    elif scenario == "rpc-abuse":
+        rpc_abuse(args[0])
+    elif scenario == "second":
+        second_connect(args[0])
+    else:
+        raise SystemExit(f"unknown scenario {scenario}")
+
+
+if __name__ == "__main__":
+    main()
