@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import threading
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -91,19 +92,27 @@ def spawn() -> Iterator[Callable[..., subprocess.Popen[Any]]]:
         procs.close()
 
 
-def _children() -> set[int]:
-    try:
-        return {p.pid for p in psutil.Process().children(recursive=False)}
-    except psutil.Error:
-        return set()
+class _TrackedPopen(subprocess.Popen):  # type: ignore[type-arg]
+    """``subprocess.Popen`` that notes which processes the main thread (a test's body) started; processes
+    that a fixture's worker thread starts in the background (the docs harness runs pages in threads) are
+    not a test's to kill."""
+
+    started_by_tests: set[int] = set()  # noqa: RUF012 - one registry for the whole session
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        if threading.current_thread() is threading.main_thread():
+            _TrackedPopen.started_by_tests.add(self.pid)
 
 
-_CHILDREN_BEFORE = pytest.StashKey[set[int]]()
+subprocess.Popen = _TrackedPopen  # type: ignore[misc]  # asyncio's subprocesses go through it too
+
+_STARTED_BEFORE = pytest.StashKey[set[int]]()
 
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
-    item.stash[_CHILDREN_BEFORE] = _children()  # after set-up: a module fixture's processes are not the test's
+    item.stash[_STARTED_BEFORE] = set(_TrackedPopen.started_by_tests)  # set-up's processes are the fixtures'
     return (yield)
 
 
@@ -115,12 +124,14 @@ def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> 
     try:
         return (yield)
     finally:
-        before = item.stash.get(_CHILDREN_BEFORE, None)
+        before = item.stash.get(_STARTED_BEFORE, None)
+        started = _TrackedPopen.started_by_tests - before if before is not None else set()
+        _TrackedPopen.started_by_tests -= started
         leaked = []
-        for pid in _children() - before if before is not None else ():
+        for pid in started:
             try:
                 p = psutil.Process(pid)
-                if p.status() == psutil.STATUS_ZOMBIE:
+                if p.status() == psutil.STATUS_ZOMBIE or p.ppid() != os.getpid():
                     continue
                 cmd = " ".join(p.cmdline())[:120]
             except psutil.NoSuchProcess:
