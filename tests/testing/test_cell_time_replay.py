@@ -146,9 +146,13 @@ def test_wsg_replay_sim_is_the_ci_one_liner() -> None:
 
     done = wsg("replay", str(SAMPLE), "--sim", "wsg50")
     assert done.returncode == 0 and "all replies matched" in done.stdout, done.stdout + done.stderr
-    done = wsg("replay", str(SAMPLE), "--sim", "wsg32", "--json")
-    assert done.returncode == 1
-    report = json.loads(done.stdout)
+    from click.testing import CliRunner
+
+    from pywsg.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["replay", str(SAMPLE), "--sim", "wsg32", "--json"])
+    assert res.exit_code == 1
+    report = json.loads(res.output)
     assert not report["matched"] and any(d["what"] == "width" for d in report["differences"])
-    done = wsg("replay", str(SAMPLE))
-    assert done.returncode == 2 and "--to URL or --sim MODEL" in done.stderr
+    res = CliRunner().invoke(cli, ["replay", str(SAMPLE)])
+    assert res.exit_code == 2 and "--to URL or --sim MODEL" in res.output

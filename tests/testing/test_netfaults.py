@@ -226,3 +226,25 @@ def test_can_frames_dropped_and_garbled() -> None:
             g.width()
         sim.world.net("clear")
         assert g.temperature() > 0  # another command: in step at once
+
+
+def test_a_slow_fault_holds_back_a_bounded_amount() -> None:
+    """A client flooding a 1-byte/s link: the sim holds at most MAX_PENDING bytes, dropping whole writes."""
+    import asyncio
+
+    from pywsg.server.netfault import MAX_PENDING, Shaper
+
+    async def flood() -> tuple[int, int]:
+        nf = NetFaults()
+        nf.set("bandwidth", {"rate": 1})
+        written: list[bytes] = []
+        shaper = Shaper(nf, written.append)
+        for _ in range(10_000):
+            shaper.send(b"x" * 100)
+        held = shaper._pending_bytes
+        shaper.close()
+        return held, nf.counts["overflow"]
+
+    held, overflow = asyncio.run(flood())
+    assert held <= MAX_PENDING
+    assert overflow == 10_000 - MAX_PENDING // 100

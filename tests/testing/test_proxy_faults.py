@@ -91,9 +91,13 @@ def test_wsg_proxy_net_and_control_switch_faults_at_runtime() -> None:
                 assert time.monotonic() - t >= 0.14
                 done = wsg("world", "--sim", base, "net", "latency", "off")
                 assert done.returncode == 0 and done.stdout.strip() == "latency off", done
-                done = wsg("world", "--sim", base, "net", "drop", "--ms", "3")
-                assert done.returncode == 1 and "ms: not a parameter of drop" in done.stderr, done
-                state = json.loads(wsg("world", "--sim", base, "--json", "state").stdout)
+                from click.testing import CliRunner
+
+                from pywsg.cli.main import cli
+
+                res = CliRunner().invoke(cli, ["world", "--sim", base, "net", "drop", "--ms", "3"])
+                assert res.exit_code == 1 and "ms: not a parameter of drop" in res.output, res.output
+                state = json.loads(CliRunner().invoke(cli, ["world", "--sim", base, "--json", "state"]).output)
                 assert state["net"] == {}
                 assert g.loop(b"fast") == b"fast"
         finally:
@@ -101,10 +105,16 @@ def test_wsg_proxy_net_and_control_switch_faults_at_runtime() -> None:
             proc.communicate(timeout=15)
 
 
-def test_wsg_proxy_refuses_a_bad_net_option() -> None:
-    done = wsg("proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--net", "latency:ms=-4")
-    assert done.returncode == 2
-    assert "--net" in done.stderr and "ms: must be within" in done.stderr
+def test_wsg_proxy_refuses_a_bad_net_option_and_a_public_control_port() -> None:
+    from click.testing import CliRunner
+
+    from pywsg.cli.main import cli
+
+    done = CliRunner().invoke(cli, ["proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--net", "latency:ms=-4"])
+    assert done.exit_code == 2
+    assert "--net" in done.output and "ms: must be within" in done.output
+    done = CliRunner().invoke(cli, ["proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--control", "0.0.0.0:0"])
+    assert done.exit_code == 2 and "loopback only" in done.output
 
 
 def test_control_api_refuses_browser_pages_and_foreign_hosts(tapped: tuple[SimThread, Proxy, LoopThread]) -> None:

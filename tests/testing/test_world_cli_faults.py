@@ -8,13 +8,21 @@ import time
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner, Result
 
+from pywsg.cli.main import cli
 from pywsg.client import Gripper
 from pywsg.errors import TimeoutError
 from pywsg.protocol import SystemFlag
 from pywsg.testing import SimThread
 
 from .conftest import SimProc, wsg
+
+
+def _world(*args: str) -> Result:
+    """``wsg world ARGS`` in this process (the same command code; the test's first line runs the real
+    `wsg` in a subprocess): a subprocess each would cost a Python start-up per line."""
+    return CliRunner().invoke(cli, ["world", *args])
 
 
 def test_wsg_world_switches_network_and_user_faults(sim_proc: type[SimProc]) -> None:
@@ -25,21 +33,21 @@ def test_wsg_world_switches_network_and_user_faults(sim_proc: type[SimProc]) -> 
         t = time.monotonic()
         g.loop(b"slow")
         assert time.monotonic() - t >= 0.1
-    assert "network      latency ms=120 jitter=10" in wsg("world", "--sim", sim.web, "state").stdout
-    assert wsg("world", "--sim", sim.web, "net", "clear").returncode == 0
-    r = wsg("world", "--sim", sim.web, "net", "drop", "-p", "7")
-    assert r.returncode == 1 and "p: must be within 0..1" in r.stderr  # refused, one line, exit 1
-    r = wsg("world", "--sim", sim.web, "--json", "fault", "ack", "on")
-    assert "acknowledge refused" in json.loads(r.stdout)["state"]["faults"]
-    r = wsg("world", "--sim", sim.web, "--json", "fault", "watchdog", "on", "--timeout", "30")
-    assert "watchdog 30 s" in json.loads(r.stdout)["state"]["faults"]
-    r = wsg("world", "--sim", sim.web, "slip")
-    assert r.returncode == 1 and "no part between the fingers" in r.stderr
+    assert "network      latency ms=120 jitter=10" in _world("--sim", sim.web, "state").output
+    assert _world("--sim", sim.web, "net", "clear").exit_code == 0
+    r = _world("--sim", sim.web, "net", "drop", "-p", "7")
+    assert r.exit_code == 1 and "p: must be within 0..1" in r.output  # refused, one line, exit 1
+    r = _world("--sim", sim.web, "--json", "fault", "ack", "on")
+    assert "acknowledge refused" in json.loads(r.output)["state"]["faults"]
+    r = _world("--sim", sim.web, "--json", "fault", "watchdog", "on", "--timeout", "30")
+    assert "watchdog 30 s" in json.loads(r.output)["state"]["faults"]
+    r = _world("--sim", sim.web, "slip")
+    assert r.exit_code == 1 and "no part between the fingers" in r.output
     with Gripper(sim.url, timeout=3.0) as g:
         g.loop(b"hello")
-        r = wsg("world", "--sim", sim.web, "disconnect")
-        assert r.returncode == 0 and "connections interrupted by the gripper" in r.stdout
-    assert json.loads(wsg("world", "--sim", sim.web, "--json", "state").stdout)["fast_stop"] is True
+        r = _world("--sim", sim.web, "disconnect")
+        assert r.exit_code == 0 and "connections interrupted by the gripper" in r.output
+    assert json.loads(_world("--sim", sim.web, "--json", "state").output)["fast_stop"] is True
 
 
 def test_scenario_switches_network_faults_and_slips_the_part(tmp_path: Path) -> None:
@@ -75,8 +83,8 @@ def test_wsg_sim_net_starts_with_a_network_fault(sim_proc: type[SimProc]) -> Non
         t = time.monotonic()
         g.loop(b"slow")
         assert time.monotonic() - t >= 0.14
-    state = json.loads(wsg("world", "--sim", sim.web, "--json", "state").stdout)
+    state = json.loads(_world("--sim", sim.web, "--json", "state").output)
     assert state["net"] == {"latency": {"ms": 150.0, "jitter": 0.0}}
-    done = wsg("sim", "--net", "latency:rate=5", "--tcp-port", "0", "--udp-port", "off", "--serial", "off",
-               "--web-port", "off")
-    assert done.returncode == 2 and "rate: not a parameter of latency" in done.stderr
+    done = CliRunner().invoke(cli, ["sim", "--net", "latency:rate=5", "--tcp-port", "0", "--udp-port", "off",
+                                    "--serial", "off", "--web-port", "off"])
+    assert done.exit_code == 2 and "rate: not a parameter of latency" in done.output

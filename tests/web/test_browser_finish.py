@@ -231,7 +231,14 @@ def test_simulation_page_shows_the_part_and_the_block(sim: LiveSim, pages: Any) 
         assert api.post("/api/sim/part", json={"width": 22.0}).status_code == 200
         page.goto(sim.url + "/simulation")
         live(page)
-        page.wait_for_function("document.getElementById('world-part').innerText === '22.00 mm wide'")
+        page.wait_for_function(
+            "document.getElementById('world-part').innerText === '22.00 mm wide, gripped from outside'")
+        page.fill("#form-part [name=width]", "40")
+        page.check("#form-part [name=inside]")  # issue 24 item 7: a ring, gripped from inside
+        page.click("#form-part button[type=submit]")
+        page.wait_for_function(
+            "document.getElementById('world-part').innerText === '40.00 mm wide, a ring gripped from inside'")
+        assert sim.call(lambda: sim.gripper.obstacles["part"].blocks) == 1
         assert page.inner_text("#world-block") == "none"
         page.fill("#form-block [name=width]", "30")
         page.click("#form-block button[type=submit]")  # set on this page: shown at once

@@ -123,6 +123,9 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
 
             try:
                 server = ControlServer(net, loop, *control_addr).start()
+            except ValueError as exc:
+                await tap.close()
+                raise click.BadParameter(str(exc), param_hint="--control") from None
             except OSError as exc:
                 await tap.close()
                 raise click.ClickException(f"cannot listen on --control {control}: {exc.strerror or exc}") from None

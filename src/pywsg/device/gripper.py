@@ -82,6 +82,19 @@ def _max_request(command_id: int) -> int:
 _MAX_REQUEST: tuple[int, ...] = tuple(_max_request(i) for i in range(256))
 
 
+
+_STATUS_REPLIES: dict[tuple[int, int], Frame] = {}
+
+
+def _status_reply(command_id: int, status: Status) -> Frame:
+    """``Frame.reply(command_id, status)``, made once per pair (frames are immutable): a flood of bad
+    frames costs a dictionary lookup per answer."""
+    key = (command_id, int(status))
+    frame = _STATUS_REPLIES.get(key)
+    if frame is None:
+        frame = _STATUS_REPLIES[key] = Frame.reply(command_id, status)
+    return frame
+
 class VirtualGripper(DeviceCore):
     """A WSG that answers every command of the command manual like the real one.
 
@@ -313,15 +326,17 @@ class VirtualGripper(DeviceCore):
 
     def _answer_status(self, s: Session, command_id: int, status: Status) -> list[Frame]:
         now = self.clock()
-        self.advance(now)
+        if now >= self.schedule.next_event:  # as handle_frame: nothing is due before next_event
+            self.advance(now)
         streams = self.streams
         out = streams.take(s) if streams.outbox else []
         if s.denied or s.announced or s.closed:  # refused: answered, and nothing of the device changes
-            out.append(Frame.reply(command_id, S.E_ACCESS_DENIED))
+            out.append(_status_reply(command_id, S.E_ACCESS_DENIED))
             return out
-        self._bits |= _SF_CMD_FAILURE
-        out.append(Frame.reply(command_id, status))
-        self.changed()
+        out.append(_status_reply(command_id, status))
+        if not self._bits & _SF_CMD_FAILURE:  # a flood of bad frames changes the state once, not per frame
+            self._bits |= _SF_CMD_FAILURE
+            self.changed()
         return out
 
     def handle_frame(self, s: Session, frame: Frame) -> list[Frame]:

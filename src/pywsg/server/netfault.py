@@ -46,6 +46,10 @@ KINDS = ("latency", "bandwidth", "slicer", "reset", "silent", "drop", "reorder",
 REORDER_HOLD = 0.05
 """Longest time (s) a held-back datagram waits for a next one before it goes out anyway."""
 
+MAX_PENDING = 64 * 1024
+"""Bytes one :class:`Shaper` holds back at most (latency, bandwidth, slicer); what would exceed it is
+dropped whole, as by a congested link (``counts["overflow"]``), so a slow fault never grows memory."""
+
 
 class NetFaultError(ValueError):
     """A network fault was refused: ``field`` names the parameter, the message says why."""
@@ -114,8 +118,9 @@ class NetFaults:
         self.active = False
         """Any fault on: the transports' fast path is ``if not faults.active``."""
         self.listeners: list[Callable[[str], None]] = []
-        self.counts = {"dropped": 0, "reordered": 0, "garbled": 0, "reset": 0, "silenced": 0}
-        """Datagrams dropped/reordered, bytes garbled, connections reset, bytes swallowed while silent."""
+        self.counts = {"dropped": 0, "reordered": 0, "garbled": 0, "reset": 0, "silenced": 0, "overflow": 0}
+        """Datagrams dropped/reordered, bytes garbled, connections reset, bytes swallowed while silent,
+        writes dropped because too much was held back (:data:`MAX_PENDING`)."""
 
     # -- switching -------------------------------------------------------------------------
     def set(self, kind: str, params: Mapping[str, Any] | None = None) -> str:
@@ -254,6 +259,7 @@ class Shaper:
         self._held: bytes | None = None
         self._held_timer: asyncio.TimerHandle | None = None
         self._last = 0.0  # loop time of the last datagram scheduled (a held one goes after it)
+        self._pending_bytes = 0
 
     @property
     def busy(self) -> bool:
@@ -275,6 +281,9 @@ class Shaper:
             if s.reorder and self._held is None and f.rng.random() < s.reorder:
                 self._hold(data)
                 return
+        if self._pending_bytes + len(data) > MAX_PENDING:
+            f.counts["overflow"] += 1  # whole writes only: a frame is never cut
+            return
         data = f.garble_bytes(data)
         loop = asyncio.get_running_loop()
         now = loop.time()
@@ -304,10 +313,12 @@ class Shaper:
         def fire() -> None:
             assert handle is not None
             self._pending.discard(handle)
+            self._pending_bytes -= len(piece)
             self.write(piece)
 
         handle = loop.call_at(t, fire)
         self._pending.add(handle)
+        self._pending_bytes += len(piece)
 
     def _hold(self, data: bytes) -> None:
         self._held = data
@@ -328,6 +339,7 @@ class Shaper:
         for h in self._pending:
             h.cancel()
         self._pending.clear()
+        self._pending_bytes = 0
         if self._held_timer is not None:
             self._held_timer.cancel()
         self._held = self._held_timer = None

@@ -31,7 +31,7 @@ from .trace import log_replies
 
 log = logging.getLogger("pywsg.server.tcp")
 
-READ_SLICE = 8 * 1024
+READ_SLICE = 4 * 1024
 """Bytes of one client parsed per event-loop turn (~0.5-3 ms of work even for hostile input)."""
 
 

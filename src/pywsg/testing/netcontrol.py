@@ -9,8 +9,9 @@ serves both: ``wsg world --sim http://127.0.0.1:PORT net latency --ms 200``::
 
 Replies are JSON (``{"ok": true, "action": "latency 200 ms ± 50 ms", "state": {"net": ...}}``); a refused
 value is 422 ``{"detail": ..., "errors": {field: reason}}``. Like the world API on a loopback sim it is
-for programs on this host: it binds loopback by default, the ``Host`` header must name a loopback
-address, and a request a browser page sends (``Origin`` / ``Sec-Fetch-Site``) is refused (403).
+for programs on this host and has no password: it binds loopback only, the ``Host`` header must name a
+loopback address, a request a browser page sends (``Origin`` / ``Sec-Fetch-Site``) is refused (403),
+bodies are at most 4 KiB and a connection that sends nothing for 5 s is closed.
 
 Served by the standard library's :class:`http.server.ThreadingHTTPServer` on a thread of its own; each
 change runs on the proxy's loop (the faults are only touched there).
@@ -44,6 +45,9 @@ class ControlServer:
 
     def __init__(self, net: NetFaults, loop: asyncio.AbstractEventLoop, host: str = "127.0.0.1",
                  port: int = 0) -> None:
+        if host not in _LOOPBACK and not host.startswith("127."):
+            raise ValueError(f"{host}: the control API has no password, so it listens on loopback only "
+                             "(127.0.0.1, ::1, localhost)")
         self.net = net
         self.loop = loop
         self.httpd = ThreadingHTTPServer((host, port), self._handler())
@@ -79,6 +83,7 @@ class ControlServer:
 
         class Handler(BaseHTTPRequestHandler):
             server_version = "pywsg-proxy"
+            timeout = 5  # s a connection may stay silent (a slow or idle client frees its thread)
 
             def log_message(self, format: str, *args: Any) -> None:
                 pass  # the proxy's own output is the comm log

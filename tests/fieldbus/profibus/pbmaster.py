@@ -26,7 +26,7 @@ def gsd_path() -> str:
     return str(resources.files("pywsg.fieldbus") / "descriptions" / "WEIS5555.gsd")
 
 
-def conf_text(path: str, *, address: int = 7, watchdog_ms: int = 1000, baud: int = 19200) -> str:
+def conf_text(path: str, *, address: int = 7, watchdog_ms: int = 3000, baud: int = 19200) -> str:
     return f"""
 [PROFIBUS]
 debug = 0

@@ -67,3 +67,15 @@ def test_station_address_comes_from_the_stored_interface_settings(
     (tmp_path / "s.interface.json").write_text(json.dumps({"profibus_address": 23}))
     _, line = _sim(procs, "--settings", str(tmp_path / "s.json"))
     assert "?address=23&" in line
+
+
+def test_a_missing_serial_device_is_one_clear_line() -> None:
+    bad = subprocess.run(
+        [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", "0", "--udp-port",
+         "0", "--serial", "off", "--web-port", "off", "--profibus", "/dev/no-such-rs485"],
+        capture_output=True, text=True, timeout=30)
+    assert bad.returncode == 1 and "Traceback" not in bad.stderr
+    lines = bad.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].endswith(
+        "gripper 0: cannot open PROFIBUS line /dev/no-such-rs485: No such file or directory "
+        "(--profibus pty for a new pseudo-terminal)"), bad.stderr

@@ -68,3 +68,8 @@ def test_the_device_side_never_imports_pyprofibus() -> None:
     code = ("import sys; import pywsg.fieldbus.profibus.line, pywsg.fieldbus.profibus.exchange, pywsg.server.sim; "
             "import pywsg.cli.main; assert 'pyprofibus' not in sys.modules, 'imported'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def test_a_port_that_does_not_exist_is_a_connection_error_naming_it() -> None:
+    with pytest.raises(ProfibusError, match=r"^[^\n]*/dev/no-such-rs485[^\n]*$"):
+        asyncio.run(open_exchange("profibus:///dev/no-such-rs485?address=7", timeout=1))

@@ -39,7 +39,7 @@ def test_scl_cycle_holds_the_part_over_profibus(pb_sim: SimThread) -> None:
     url = f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000"
     result = asyncio.run(run_demo(url, cycles=2, timeout=40, echo=lines.append))
     assert result.completed, "\n".join(lines)
-    assert (result.cycles, result.holds, result.no_part, result.errors) == (2, 2, 0, 0)
+    assert (result.cycles, result.holds, result.no_part, result.errors) == (2, 2, 0, 0), "\n".join(lines)
     assert pb_sim.call(lambda: pb_sim.gripper.snapshot().statistics[0]) == 2   # the gripper counted 2 grips
     assert ad.slave.stats.data_exchanges > 10
 
@@ -64,3 +64,19 @@ def test_fieldbus_gripper_grips_a_part_over_profibus(pb_sim: SimThread) -> None:
     with FieldbusGripper(f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000", timeout=10) as g:
         g.homing()
         assert g.grip(20.0, 100.0, 40.0).state == GripperState.HOLDING
+
+
+def test_plc_demo_json_over_profibus_is_json_only(pb_factory: object) -> None:
+    """pyprofibus prints its warnings (e.g. about 45450 bit/s) on stdout; ``--json`` stays one JSON
+    object per line all the same (they go to the log)."""
+    import json
+
+    sim = pb_factory(tcp_port=None, udp_port=None, profibus="pty", profibus_baudrate=45450)  # type: ignore[operator]
+    _fast_fingers_and_a_part(sim)
+    ad = adapter(sim)
+    proc = subprocess.run([WSG, "plc-demo", "--json", "--url",
+                           f"profibus://{ad.path}?address=7&baudrate=45450&watchdog_ms=5000",
+                           "--cycles", "1", "--timeout", "30"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    events = [json.loads(line) for line in proc.stdout.splitlines()]   # every line is JSON
+    assert events and "Warning" not in proc.stdout

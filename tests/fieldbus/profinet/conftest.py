@@ -9,11 +9,13 @@ tests skip, saying so; CI runs as root.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import json
 import os
 import queue
 import shutil
+import socket
 import subprocess
 import sys
 import threading
@@ -58,6 +60,7 @@ class Wire:
     controller_ns: str
     iface: str = "eth0"
     procs: list[subprocess.Popen[str]] = field(default_factory=list)
+    sockets: list[socket.socket] = field(default_factory=list)
 
     def popen(self, ns: str, argv: list[str], **kw: object) -> subprocess.Popen[str]:
         p = subprocess.Popen(["ip", "netns", "exec", ns, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -111,7 +114,36 @@ class Wire:
         result: dict[str, object] = json.loads(lines[-1])
         return result
 
+    def socket_in(self, ns: str, family: int, kind: int, proto: int = 0) -> socket.socket:
+        """A socket made inside namespace ``ns`` (a socket keeps its namespace for life): a helper thread
+        enters the namespace with setns(2), so this process stays where it is."""
+        made: list[socket.socket | BaseException] = []
+
+        def enter() -> None:
+            try:
+                libc = ctypes.CDLL(None, use_errno=True)
+                fd = os.open(f"/run/netns/{ns}", os.O_RDONLY)
+                try:
+                    if libc.setns(fd, 0x40000000) != 0:   # CLONE_NEWNET
+                        raise OSError(ctypes.get_errno(), "setns")
+                finally:
+                    os.close(fd)
+                made.append(socket.socket(family, kind, proto))
+            except BaseException as exc:
+                made.append(exc)
+
+        t = threading.Thread(target=enter)
+        t.start()
+        t.join(10)
+        result = made[0]
+        if isinstance(result, BaseException):
+            raise result
+        self.sockets.append(result)
+        return result
+
     def close(self) -> None:
+        for sock in self.sockets:
+            sock.close()
         for p in self.procs:
             if p.poll() is None:
                 p.kill()

@@ -1,7 +1,7 @@
 """The controller side of the PROFINET wire tests, run inside the controller namespace.
 
 ``python pn_controller.py IFACE SCENARIO ARGS...`` prints one JSON line with what it saw. It uses
-profinet-py (a real IO controller) for DCP, records and the AR; the abuse scenario writes raw frames.
+profinet-py (a real IO controller) for DCP, records, the AR and its alarms.
 """
 
 from __future__ import annotations
@@ -9,9 +9,6 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import random
-import socket
-import struct
 import sys
 import time
 from typing import Any
@@ -122,57 +119,6 @@ def dcp_scenario(name: str, mac: str) -> None:
     out(**res)
 
 
-def _raw() -> tuple[socket.socket, bytes]:
-    s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(0x8892))
-    s.bind((IFACE, 0))
-    return s, get_mac(IFACE)
-
-
-def flood(kind: str, count: int, mac: str) -> None:
-    """Send ``count`` frames of one kind as fast as possible; report how long it took."""
-    s, src = _raw()
-    dst = bytes.fromhex(mac.replace(":", ""))
-    rnd = random.Random(7)
-    frames: list[bytes] = []
-    for i in range(min(count, 512)):
-        if kind == "garbage":   # random 8892h frames, many with DCP and RT frame IDs and lying lengths
-            fid = rnd.choice([0xFEFE, 0xFEFD, 0xFEFC, 0xC000, 0x8000, 0xFC01, rnd.randrange(65536)])
-            body = struct.pack("!H", fid) + bytes(rnd.randrange(256) for _ in range(rnd.randrange(0, 80)))
-            frames.append(rnd.choice([dst, b"\x01\x0e\xcf\x00\x00\x00"]) + src + b"\x88\x92" + body)
-        elif kind == "identify":   # DCP Identify All to the multicast address
-            frames.append(b"\x01\x0e\xcf\x00\x00\x00" + src + b"\x88\x92"
-                          + struct.pack("!HBBIHH", 0xFEFE, 5, 0, i, 1, 4) + b"\xff\xff\x00\x00")
-        else:   # DCP Identify for a name that is not ours: parsed, filtered, not answered
-            frames.append(b"\x01\x0e\xcf\x00\x00\x00" + src + b"\x88\x92"
-                          + struct.pack("!HBBIHH", 0xFEFE, 5, 0, i, 1, 8) + b"\x02\x02\x00\x04nope")
-    t0 = time.monotonic()
-    for i in range(count):
-        f = frames[i % len(frames)]
-        s.send(f + bytes(max(0, 60 - len(f))))
-    out(sent=count, seconds=time.monotonic() - t0)
-
-
-def rpc_abuse(device_ip: str) -> None:
-    """Malformed RPC datagrams, then a well-formed Connect a second controller would send."""
-    u = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    u.settimeout(0.5)
-    rnd = random.Random(11)
-    answers = 0
-    for n in (0, 1, 79, 80, 81, 200, 1400):
-        for _ in range(20):
-            data = bytes(rnd.randrange(256) for _ in range(n))
-            if n >= 80 and rnd.random() < 0.5:   # a plausible header with a lying body length
-                data = bytes([4, 0, 0x20, 0, 0x10, 0, 0, 0]) + data[8:74] + b"\xff\xff" + data[76:]
-            u.sendto(data, (device_ip, 34964))
-    try:
-        while True:
-            u.recvfrom(4096)
-            answers += 1
-    except TimeoutError:
-        pass
-    out(answers_to_garbage=answers)
-
-
 def second_connect(name: str) -> None:
     """A second controller asks for the IO AR while another one holds it: the PNIO status it gets."""
     dev = ProfinetDevice.discover(name, IFACE, timeout=3)
@@ -197,10 +143,6 @@ def main() -> None:
         diag(args[0])
     elif scenario == "dcp":
         dcp_scenario(args[0], args[1])
-    elif scenario == "flood":
-        flood(args[0], int(args[1]), args[2])
-    elif scenario == "rpc-abuse":
-        rpc_abuse(args[0])
     elif scenario == "second":
         second_connect(args[0])
     else:

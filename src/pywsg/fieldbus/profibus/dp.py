@@ -179,11 +179,11 @@ class DpSlave:
             return None
         if func not in (fdl.REQ_SRD_HI, fdl.REQ_SRD_LO, fdl.REQ_SDA_HI, fdl.REQ_SDA_LO):
             return None                              # Ident, LSAP status, time events: not offered
+        self._touch(tel.sa, now)                    # a repeat is a sign of life too
         fcb = tel.fc & fdl.FC_FCB
         if tel.fc & fdl.FC_FCV and self._fcb.get(tel.sa) == fcb and tel.sa in self._last:
             self.stats.repeats += 1                 # the master lost our response: send it again
             return self._last[tel.sa]
-        self._touch(tel.sa, now)
         response = self._service(tel, now)
         if func in (fdl.REQ_SDA_HI, fdl.REQ_SDA_LO):
             response = fdl.SHORT_ACK

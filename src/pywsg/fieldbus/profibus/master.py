@@ -6,8 +6,8 @@ default 2, the manual's demo PLC) and ``watchdog_ms`` (default 1000; 0 off).
 
 pyprofibus (GPL-2.0+) is the optional extra ``pywsg[profibus]``: it is imported only when an exchange
 is opened, and a clear error says how to install it. Its DPM1 runs in a thread of its own (its state
-machine is polled); :meth:`ProfibusExchange.read_inputs` waits for a Data_Exchange that carried the
-outputs written before it, so a write followed by a read is one bus cycle, as a PLC scan sees it.
+machine is polled); :meth:`ProfibusExchange.read_inputs` waits for the second Data_Exchange after
+the last write (the first may have been on the line with the old outputs), as a PLC scan sees it.
 """
 
 from __future__ import annotations
@@ -73,11 +73,29 @@ class ProfibusUrl:
         return f"profibus://{self.port}?address={self.address}&baudrate={self.baudrate}"
 
 
+_pb_log = logging.getLogger("pywsg.fieldbus.profibus.pyprofibus")
+
+
+def _log_print(*args: Any, **kwargs: Any) -> None:
+    """pyprofibus reports with print() on stdout; that would break ``--json`` output: log it instead."""
+    text = " ".join(str(a) for a in args).strip()
+    if "ERROR" in text or "Warning" in text:
+        _pb_log.warning(text)
+    elif text:
+        _pb_log.debug(text)
+
+
 def _import_pyprofibus() -> Any:
     try:
         import pyprofibus
+        import pyprofibus.dp_master
+        import pyprofibus.phy
+        import pyprofibus.phy_serial
     except ImportError:
         raise ProfibusError(INSTALL_HINT) from None
+    # A module global named print shadows the builtin for that module's own calls only.
+    for module in (pyprofibus.phy, pyprofibus.phy_serial, pyprofibus.dp_master):
+        module.print = _log_print
     return pyprofibus
 
 
@@ -115,7 +133,7 @@ class ProfibusExchange:
             conf = pb.PbConf(io.StringIO(conf_text))
             master = conf.makeDPM()
         except pb.ProfibusError as exc:
-            raise ProfibusError(f"{u}: {str(exc).strip()}") from None
+            raise ProfibusError(f"{u}: {' '.join(str(exc).split())}") from None   # one line
         desc = conf.slaveConfs[0].makeDpSlaveDesc()
         master.addSlave(desc)
         master.initialize()
@@ -165,7 +183,7 @@ class ProfibusExchange:
             self._due = self._cycles + 2
 
     async def read_inputs(self, timeout: float = 1.0) -> bytes:
-        """The 12 input bytes of a Data_Exchange that carried the last written outputs."""
+        """The 12 input bytes of the second Data_Exchange after the last write (``timeout`` in s)."""
         deadline = time.monotonic() + timeout
         while True:
             with self._lock:

@@ -78,6 +78,19 @@ def open_raw_socket(iface: str) -> socket.socket:
     return sock
 
 
+def interface_ipv4(iface: str) -> str | None:
+    """The interface's own (primary) IPv4 address, or None (SIOCGIFADDR)."""
+    import fcntl
+    import struct
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            res = fcntl.ioctl(s.fileno(), 0x8915, struct.pack("256s", iface.encode()[:15]))
+        except OSError:
+            return None
+    return socket.inet_ntoa(res[20:24])
+
+
 def _identity(gripper: Any) -> Identity:
     profile = getattr(gripper, "profile", None)
     name = str(getattr(profile, "name", "WSG 50"))
@@ -136,6 +149,7 @@ class ProfinetDevice:
         attach = getattr(self.controller, "attach_bus", None)
         if attach is not None:
             attach(self)
+        self._check_conflict()
         log.info("PROFINET: %s", self.line())
         return self
 
@@ -301,6 +315,12 @@ class ProfinetDevice:
         self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
 
     # --- DCP Set ----------------------------------------------------------------------------------
+    def _check_conflict(self) -> None:
+        """The host answering for the station's IP on the same wire would confuse every controller."""
+        if self.ipstack.has_ip and interface_ipv4(self.iface) == self.station.ip.ip:
+            log.warning("PROFINET: %s is also the host's own address on %s: give the station an address of its "
+                        "own (the host answers ARP for it too)", self.station.ip.ip, self.iface)
+
     def _set_name(self, name: str, permanent: bool) -> int:
         if self.cm.io_ar is not None and name != self.station.name:
             log.warning("PROFINET: DCP Set NameOfStation refused: an AR is established")
@@ -317,6 +337,7 @@ class ProfinetDevice:
             return 6
         self.station.ip = suite
         self.ipstack.ip = suite.ip
+        self._check_conflict()
         if permanent:
             self.store.save(ip_address=suite.ip, netmask=suite.mask,
                             gateway="" if suite.gateway == NO_IP else suite.gateway)

@@ -6,7 +6,8 @@
     const r = await WSG.api("GET", "/api/sim/world");
     if (!r.ok) return;
     const w = r.data;
-    document.getElementById("world-part").textContent = w.part === null ? "none" : WSG.fmt(w.part, 2, "mm") + " wide";
+    document.getElementById("world-part").textContent = w.part === null ? "none"
+      : WSG.fmt(w.part, 2, "mm") + " wide" + (w.part_inside ? ", a ring gripped from inside" : ", gripped from outside");
     document.getElementById("world-block").textContent = w.blocked_at === null ? "none" : "at " + WSG.fmt(w.blocked_at, 2, "mm");
     document.getElementById("world-faults").textContent = w.faults.length ? w.faults.join(", ") : "none";
     document.getElementById("world-temp").textContent = WSG.fmt(w.temperature, 1, "°C");
