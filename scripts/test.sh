@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Runs the whole test suite on a fresh machine: installs what it needs (a venv with the package and
 # its test extras; Debian's chromium, mbpoll, tshark and npm for the browser, Modbus-master and capture
-# tests; axe-core from npm for the accessibility check), then lint, types, and pytest. Extra arguments go to pytest.
+# tests; axe-core from npm for the accessibility check), then lint, types (also for Python 3.10), the
+# package build (python -m build + twine check, in tests/test_packaging.py) and pytest in parallel
+# (pytest-xdist). Extra arguments go to pytest; without any, the fieldbus tests also run on the oldest
+# supported pymodbus.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -18,27 +21,36 @@ if [ ${#need[@]} -gt 0 ]; then
     SUDO=""
     [ "$(id -u)" -eq 0 ] || SUDO="sudo"
     echo "installing Debian packages: ${need[*]}"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}" >/dev/null
+    # another apt-get or dpkg (unattended upgrades, a second job) holds the lock: wait for it, up to 10 minutes
+    APT=(apt-get -o DPkg::Lock::Timeout=600)
+    $SUDO "${APT[@]}" update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO "${APT[@]}" install -y -qq "${need[@]}" >/dev/null
 fi
 # axe-core (npm) checks the web pages for WCAG violations in the browser tests
 if [ ! -f .venv/axe/node_modules/axe-core/axe.min.js ]; then
     npm install --prefix .venv/axe --no-save --no-audit --no-fund --loglevel=error axe-core@4 >/dev/null
 fi
-echo "== ruff"
+echo "== ruff (target: Python 3.10)"
 .venv/bin/ruff check src tests benchmarks
-echo "== mypy (strict)"
+echo "== mypy (strict, Python 3.10)"
 .venv/bin/mypy
 echo "== import contracts (.importlinter)"
 .venv/bin/lint-imports --no-cache
-echo "== pytest"
-.venv/bin/python -m pytest -q "$@"
+# Hypothesis: the same examples every run, no example database (tests/conftest.py)
+export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
+# Workers: tests mostly wait (sockets, subprocesses, a browser), so one more than the cores keeps 2 cores busy.
+# --dist loadfile: the tests of a module run on one worker, in order, sharing its module-scoped fixtures.
+WORKERS=${PYTEST_WORKERS:-$(( $(nproc) + 1 ))}
+XDIST=(-n "$WORKERS" --dist loadfile)
+echo "== pytest ($WORKERS workers)"
+.venv/bin/python -m pytest -q "${XDIST[@]}" --durations=20 "$@"
 if [ $# -eq 0 ]; then
-    # The pymodbus pin's lower end (pyproject.toml) is supported too: run the fieldbus tests on it, shadowing the
-    # installed (newest) pymodbus with the oldest allowed one.
-    oldest=$(.venv/bin/python -c 'import re,tomllib;d=tomllib.load(open("pyproject.toml","rb"));print(next(re.search(r">=([0-9.]+)",x).group(1) for x in d["project"]["dependencies"] if x.startswith("pymodbus")))')
-    echo "== fieldbus tests on the oldest supported pymodbus ($oldest)"
+    # The pymodbus pin's lower end (pyproject.toml) is supported too: run the tests that use pymodbus on it,
+    # shadowing the installed (newest) pymodbus with the oldest allowed one.
+    oldest=$(sed -n 's/^ *"pymodbus>=\([0-9.]*\).*/\1/p' pyproject.toml | head -n 1)
+    [ -n "$oldest" ] || { echo "no pymodbus>= pin found in pyproject.toml" >&2; exit 1; }
+    echo "== the tests that use pymodbus, on the oldest supported pymodbus ($oldest)"
     target=.venv/pymodbus-$oldest
     [ -d "$target/pymodbus" ] || .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps --target "$target" "pymodbus==$oldest"
-    PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider tests/fieldbus tests/server/test_connection_caps.py
+    PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider "${XDIST[@]}" -m pymodbus
 fi

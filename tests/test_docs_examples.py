@@ -48,7 +48,7 @@ RUN_SH = {"sh", "bash", "shell"}
 SHOWN = {"text"}
 FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})(?P<lang>[^`\s]*)[^`]*$")
 NOT_RUN = re.compile(r"^\s*<!--\s*not-run:(?P<reason>.*?)-->\s*$")
-BLOCK_TIMEOUT = 90.0
+BLOCK_TIMEOUT = 240.0  # s per block: a hang guard, generous for a loaded machine
 
 PY_RUNNER = """
 import ast, asyncio, inspect, sys, types

@@ -61,13 +61,22 @@ def test_wheel_metadata_licence_and_entry_point(built: tuple[Path, Path]) -> Non
         assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
         assert "MIT License" in z.read(next(n for n in names if n.endswith("licenses/LICENSE"))).decode()
     assert meta["License-Expression"] == "MIT"
-    assert meta["Name"] == "pywsg" and meta["Requires-Python"] == ">=3.11"
+    assert meta["Name"] == "pywsg" and meta["Requires-Python"] == ">=3.10"
     assert "wsg = pywsg.cli.main:main" in entry
     assert "pywsg/web/static/app.js" in names or any(n.startswith("pywsg/web/static/") for n in names)
     assert not any(n.startswith("tests/") for n in names)  # tests ship in the sdist, not the wheel
     # the long description is the README, and it holds up on an index page
     body = meta.get_payload()
     assert isinstance(body, str) and "## Quick start" in body
+
+
+def test_twine_check_passes(built: tuple[Path, Path]) -> None:
+    """What the package index checks on upload (the long description renders, metadata complete):
+    the release steps of docs/testing.md are then one command away."""
+    r = subprocess.run([sys.executable, "-m", "twine", "check", "--strict", *map(str, built)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.count("PASSED") == 2, r.stdout
 
 
 def test_project_urls_are_absent_or_real() -> None:

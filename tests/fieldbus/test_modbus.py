@@ -15,7 +15,7 @@ from pywsg.fieldbus.image import CmdFlag, InputImage, OutputImage
 from pywsg.protocol import GripperState, Status, SystemFlag
 from pywsg.server import SimServer
 
-pytestmark = pytest.mark.realtime
+pytestmark = [pytest.mark.realtime, pytest.mark.pymodbus]  # pymodbus: also run on the oldest pin (scripts/test.sh)
 
 
 @pytest.fixture

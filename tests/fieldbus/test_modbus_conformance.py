@@ -21,7 +21,7 @@ from pywsg.server import SimServer
 
 from .raw_modbus import adu, exchange, read_adus, registers
 
-pytestmark = pytest.mark.realtime
+pytestmark = [pytest.mark.realtime, pytest.mark.pymodbus]  # pymodbus: also run on the oldest pin (scripts/test.sh)
 
 
 @pytest.fixture

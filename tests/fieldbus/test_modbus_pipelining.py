@@ -20,6 +20,8 @@ from pywsg.testing import SimThread
 
 from .raw_modbus import adu, registers
 
+pytestmark = pytest.mark.pymodbus  # the Modbus/TCP server: also run on the oldest pymodbus (scripts/test.sh)
+
 READ = bytes([0x04, 0, 0, 0, 6])  # FC4: the six input registers (002 §3.3)
 
 

@@ -14,7 +14,7 @@ from pywsg.fieldbus.plc import AsyncFieldbusGripper, FieldbusError, FieldbusGrip
 from pywsg.protocol import CATALOG, Command, Frame, GripperState, Status, SystemFlag
 from pywsg.server import SimServer
 
-pytestmark = pytest.mark.realtime
+pytestmark = [pytest.mark.realtime, pytest.mark.pymodbus]  # pymodbus: also run on the oldest pin (scripts/test.sh)
 
 WSG = str(Path(sys.executable).parent / "wsg")
 

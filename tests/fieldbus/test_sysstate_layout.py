@@ -24,7 +24,7 @@ from pywsg.web.fieldbus_view import fieldbus_view
 
 from .raw_modbus import adu, exchange, registers
 
-pytestmark = pytest.mark.realtime
+pytestmark = [pytest.mark.realtime, pytest.mark.pymodbus]  # pymodbus: also run on the oldest pin (scripts/test.sh)
 
 # 002 Appendix D, TYPE "WSG_RECEIVE", lines 8..62 of the listing.
 STW1 = ["IDLE", "GRASPING", "NO_PART", "PART_LOST", "HOLDING", "RELEASING", "POSITIONING", "ERROR", "OF1",

@@ -38,16 +38,16 @@ def good_over_tcp(sim: SimThread) -> GoodClient:
 
 
 def wait_released(sim: SimThread, left: int) -> None:
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + 60
     while sim.call(lambda: len(sim.g.tcp.connections)) > left:
-        assert time.monotonic() < deadline, "connections not released"
+        assert time.monotonic() < deadline, f"connections not released within 60 s (want {left} left)"
         time.sleep(0.01)
 
 
 def first_connection(sim: SimThread) -> Any:
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + 60
     while not sim.call(lambda: sim.g.tcp.connections):
-        assert time.monotonic() < deadline, "no connection"
+        assert time.monotonic() < deadline, "no TCP connection accepted within 60 s"
         time.sleep(0.005)
     return sim.call(lambda: next(iter(sim.g.tcp.connections)))
 
@@ -97,10 +97,10 @@ def test_forged_size_65535_is_not_waited_for(abused: SimThread) -> None:
     good = good_over_udp(abused)
     c = TcpClient(abused.g.tcp_port)
     c.send(b"\xaa\xaa\xaa\x43\xff\xff")
-    t0 = time.monotonic()
-    r = c.reply(0x43, timeout=2)
+    # answered although no payload byte follows: a server waiting for the 65,535 bytes would never answer
+    # (it has no partial-frame timer), so the generous timeout only allows for a loaded machine
+    r = c.reply(0x43, timeout=30)
     assert r.status == Status.E_CMD_FORMAT_ERROR
-    assert time.monotonic() - t0 < 1.0
     assert c.request(0x06, b"next").params == b"next"
     good.check(at_least=1)
     c.close()
@@ -153,18 +153,18 @@ def test_subscriber_that_never_reads(sim_factory: Callable[..., SimThread]) -> N
     lazy.send(Frame(0x20, CATALOG[0x20].encode_request(direction=0)).encode())
     good = good_over_udp(sim)
     conn = first_connection(sim)
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 60
     while sim.call(lambda: conn.dropped) < 50:
-        assert time.monotonic() < deadline, "auto-updates never dropped"
+        assert time.monotonic() < deadline, "auto-updates not dropped within 60 s"
         assert sim.call(lambda: conn.buffered) <= limits.output_soft + 1024
         time.sleep(0.05)
     assert sim.call(lambda: conn.buffered) <= limits.output_soft + 1024
     good.check(at_least=20)
     # the lazy client finally reads: the homing's final reply is there
     statuses = []
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 60
     while len(statuses) < 2:
-        assert time.monotonic() < deadline
+        assert time.monotonic() < deadline, "the homing's replies did not arrive within 60 s"
         f = lazy.receive()
         if f.command_id == 0x20:
             statuses.append(f.status)
@@ -219,7 +219,7 @@ def test_memory_stays_bounded_under_repeated_abuse(abused: SimThread) -> None:
     grown = _rss() - base
     assert grown < 8 * 1024 * 1024, f"RSS grew by {grown / 1e6:.1f} MB over 4 rounds of abuse"
     # connections still in the accept backlog may be served after wait_released saw none: give them time
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + 30
     while True:
         sessions = abused.call(lambda: len(getattr(abused.g.gripper, "sessions", []) or []))
         if sessions <= 3 or time.monotonic() > deadline:

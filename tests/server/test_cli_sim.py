@@ -170,4 +170,4 @@ def test_wsg_sim_port_in_use_is_a_clear_error() -> None:
     finally:
         blocker.close()
     assert r.returncode != 0
-    assert "cannot bind" in r.stderr and "Traceback" not in r.stderr
+    assert "cannot listen" in r.stderr and "Traceback" not in r.stderr

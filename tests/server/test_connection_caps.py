@@ -11,11 +11,15 @@ import sys
 import time
 from collections.abc import Callable
 
+import pytest
+
 from pywsg.protocol import Frame, Status
 from pywsg.server import Limits
 
 from .conftest import SimThread, TcpClient
 from .test_cli_sim import free_base
+
+pytestmark = pytest.mark.pymodbus  # the Modbus/TCP server: also run on the oldest pymodbus (scripts/test.sh)
 
 MODBUS_READ = struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 2)  # FC4: read 2 input registers at 0
 

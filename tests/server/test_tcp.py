@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import socket
 import struct
+import threading
 import time
 from typing import Any
 
@@ -115,17 +116,41 @@ def test_motion_pending_then_final_and_socket_options(sim: SimThread) -> None:
     c.close()
 
 
+class SleeperThread(threading.Thread):
+    """``time.sleep(0.010)`` in a loop; :meth:`stop` returns the median period it achieved (s)."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.stamps: list[float] = []
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.is_set():
+            time.sleep(0.010)
+            self.stamps.append(time.monotonic())
+
+    def stop(self) -> float:
+        self.done.set()
+        self.join(30)
+        gaps = sorted(b - a for a, b in itertools.pairwise(self.stamps))
+        return gaps[len(gaps) // 2] if gaps else 0.010
+
+
 def test_auto_update_every_10ms_and_unsubscribe(sim: SimThread) -> None:
     c = TcpClient(sim.g.tcp_port)
     spec = CATALOG[0x43]
     assert c.request(0x43, spec.encode_request(flags=1, period_ms=10)).status == Status.E_SUCCESS
     times = []
+    ref = SleeperThread()  # the baseline: 10 ms sleeps in a thread of this process, at the same time
+    ref.start()
     for _ in range(30):
         f = c.receive()
         assert f.command_id == 0x43 and f.status == Status.E_SUCCESS
         times.append(time.monotonic())
+    ref_median = ref.stop()
     gaps = sorted(b - a for a, b in itertools.pairwise(times))
-    assert 0.007 < gaps[len(gaps) // 2] < 0.013  # median period ~10 ms
+    # median period ~10 ms: never faster; slower only as far as a thread sleeping 10 ms is (a loaded machine)
+    assert 0.007 < gaps[len(gaps) // 2] < max(0.013, 1.3 * ref_median), (gaps[len(gaps) // 2], ref_median)
     c.send(Frame(0x43, spec.encode_request(flags=0, period_ms=10)).encode())
     time.sleep(0.05)
     c.sock.settimeout(0.05)

@@ -124,7 +124,7 @@ def record_doc_image(name: str, version: str) -> None:
 
 def client_for(sim: LiveSim) -> httpx.Client:
     """An HTTP client with a session cookie and its CSRF token in the default headers."""
-    c = httpx.Client(base_url=sim.url, timeout=5.0)
+    c = httpx.Client(base_url=sim.url, timeout=30.0)  # generous: a loaded machine, not a hang
     token = c.get("/api/csrf").json()["token"]
     c.headers["X-CSRF-Token"] = token
     return c
@@ -172,7 +172,7 @@ def page(browser: Any) -> Iterator[Any]:
     pg = context.new_page()
     errors: list[str] = []
     pg.on("pageerror", lambda exc: errors.append(str(exc)))
-    pg.set_default_timeout(5000)
+    pg.set_default_timeout(30_000)  # ms; generous: a loaded machine, not a hang
     yield pg
     context.close()
     assert not errors, f"JavaScript errors: {errors}"
@@ -199,10 +199,10 @@ def home(sim: LiveSim, api: httpx.Client) -> None:
     """Reference the gripper (homing) and wait until it is done."""
     r = api.post("/api/home", json={})
     assert r.status_code == 202, r.text
-    wait_for(lambda: sim.snapshot().referenced and not sim.snapshot().moving, 10.0)
+    wait_for(lambda: sim.snapshot().referenced and not sim.snapshot().moving, 60.0)
 
 
-def wait_for(cond: Callable[[], bool], timeout: float = 5.0, step: float = 0.02) -> None:
+def wait_for(cond: Callable[[], bool], timeout: float = 30.0, step: float = 0.02) -> None:
     import time
 
     end = time.monotonic() + timeout
@@ -210,7 +210,13 @@ def wait_for(cond: Callable[[], bool], timeout: float = 5.0, step: float = 0.02)
         if cond():
             return
         time.sleep(step)
-    raise AssertionError("condition not met in time")
+    import inspect
+
+    try:
+        what = inspect.getsource(cond).strip()
+    except (OSError, TypeError):
+        what = repr(cond)
+    raise AssertionError(f"not met within {timeout:g} s: {what}")
 
 
 def read_status(s: socket.socket) -> str:

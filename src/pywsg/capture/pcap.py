@@ -52,14 +52,14 @@ class PcapWriter:
 
     def tcp_open(self, client: tuple[str, int], server: tuple[str, int], ts: float) -> None:
         """A SYN from the client: ``wsg decode -f`` then knows which side is the gripper."""
-        self._seq[(*client, *server)] = 1001
-        self._seq[(*server, *client)] = 5001
+        self._seq[client + server] = 1001
+        self._seq[server + client] = 5001
         syn = dpkt.tcp.TCP(sport=client[1], dport=server[1], seq=1000, flags=dpkt.tcp.TH_SYN)
         self._write(self._ip(client, server, syn, dpkt.ip.IP_PROTO_TCP), ts)
 
     def tcp(self, src: tuple[str, int], dst: tuple[str, int], data: bytes, ts: float) -> None:
         """``data`` as TCP segments of at most :data:`MAX_SEGMENT` bytes (one read may be 256 KiB)."""
-        key = (*src, *dst)
+        key = src + dst
         for i in range(0, len(data), MAX_SEGMENT):
             part = data[i : i + MAX_SEGMENT]
             seq = self._seq.get(key, 1)
@@ -70,7 +70,7 @@ class PcapWriter:
 
     def tcp_fin(self, src: tuple[str, int], dst: tuple[str, int], ts: float) -> None:
         """A FIN: that side shut down its writing (half-close)."""
-        seq = self._seq.get((*src, *dst), 1)
+        seq = self._seq.get(src + dst, 1)
         fin = dpkt.tcp.TCP(sport=src[1], dport=dst[1], seq=seq, flags=dpkt.tcp.TH_ACK | dpkt.tcp.TH_FIN)
         self._write(self._ip(src, dst, fin, dpkt.ip.IP_PROTO_TCP), ts)
 

@@ -5,13 +5,22 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from enum import StrEnum
+from enum import Enum
 
 
-class LogLevel(StrEnum):
+class LogLevel(str, Enum):
+    """A log entry's level; its value is the text (``str(LogLevel.INFO) == "info"``, as ``enum.StrEnum``
+    gives on Python 3.11+, which 3.10 lacks)."""
+
     INFO = "info"
     WARNING = "warning"
     ERROR = "error"
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, spec: str) -> str:
+        return format(str(self.value), spec)
 
 
 @dataclass(frozen=True, slots=True)

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import heapq
 import math
-import tomllib
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +40,11 @@ from typing import Any
 
 from ..protocol import CATALOG, GripperState
 from .world import ACTIONS, WorldError, apply
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, from PyPI
+    import tomli as tomllib
 
 __all__ = ["Event", "Scenario", "ScenarioError", "ScenarioRunner", "drive_realtime", "tap"]
 

@@ -45,7 +45,8 @@ NOT_APPLIED: dict[str, str] = {
                  "(see Serving now); a real WSG listens on the chosen one.",
     "profibus_address": "Stored, not applied: there is no PROFIBUS hardware. Shown as the Station Address "
                         "on the Fieldbus Monitor.",
-    "profinet_name": "Stored, not applied: there is no PROFINET stack.",
+    "profinet_name": "Stored, not applied: this simulator serves no PROFINET device now (wsg sim --profinet "
+                     "IFACE starts one, which takes the stored name).",
     "dhcp": "Stored, not applied: the simulator keeps the host's addresses (wsg sim --host).",
     "ip_address": "Stored, not applied: the simulator keeps the host's addresses (wsg sim --host).",
     "netmask": "Stored, not applied.",

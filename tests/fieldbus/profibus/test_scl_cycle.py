@@ -39,7 +39,7 @@ def test_scl_cycle_holds_the_part_over_profibus(pb_sim: SimThread) -> None:
     url = f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000"
     result = asyncio.run(run_demo(url, cycles=2, timeout=40, echo=lines.append))
     assert result.completed, "\n".join(lines)
-    assert (result.cycles, result.holds, result.no_part, result.errors) == (2, 2, 0, 0)
+    assert (result.cycles, result.holds, result.no_part, result.errors) == (2, 2, 0, 0), "\n".join(lines)
     assert pb_sim.call(lambda: pb_sim.gripper.snapshot().statistics[0]) == 2   # the gripper counted 2 grips
     assert ad.slave.stats.data_exchanges > 10
 
