@@ -202,13 +202,20 @@ def test_blocking_call_fallbacks_split_other_id_first_two_in_one_segment() -> No
 
 def test_blocking_call_timeout_without_waiter_leaves_a_ghost() -> None:
     n = [0]
+    timed_out, late_sent = threading.Event(), threading.Event()
+
+    def send_late(conn: RawConn) -> None:  # the first reply, only after the call gave up (no race with load)
+        timed_out.wait(30)
+        conn.send(state_reply(GripperState.NO_PART))
+        late_sent.set()
 
     def handler(conn: RawConn, f: Frame) -> None:
         if f.command_id == Command.GET_GRIPPER_STATE:
             n[0] += 1
             if n[0] == 1:
-                threading.Timer(0.25, conn.send, args=(state_reply(GripperState.NO_PART),)).start()
+                threading.Thread(target=send_late, args=(conn,), daemon=True).start()
             else:
+                late_sent.wait(30)  # the late reply is on the wire before this one
                 conn.send(state_reply(GripperState.HOLDING))
         else:
             echo_handler(conn, f)
@@ -217,6 +224,7 @@ def test_blocking_call_timeout_without_waiter_leaves_a_ghost() -> None:
         assert g.demux.alone(Command.GET_GRIPPER_STATE)  # so the first call takes the waiter-less path
         with pytest.raises(TimeoutError):
             g.gripper_state()
-        time.sleep(0.3)
+        timed_out.set()
+        g.timeout = 30  # generous: the second reply follows the late one at once
         assert g.gripper_state() == GripperState.HOLDING  # the late NO_PART went to the ghost
         assert g.demux.late == 1
