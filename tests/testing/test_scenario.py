@@ -58,7 +58,7 @@ def test_lost_part_story_is_the_same_every_time() -> None:
 def test_absolute_time_power_fault_and_recovery() -> None:
     path = DOCS / "fast-stop-recovery.toml"
     with SimThread(clock="manual", scenario=path, tcp_port=None) as sim, Gripper(sim.udp_url) as g:
-        sim.world.advance(9.999)
+        sim.world.advance(4.999)
         assert sim.world.state()["fast_stop"] is False
         sim.world.advance(0.001)
         state = sim.world.state()
@@ -128,14 +128,14 @@ def test_wsg_sim_json_reports_scenario_actions_as_json(tmp_path: Path, sim_proc:
 
 
 def test_plc_demo_recovers_from_the_scenario_fast_stop(sim_proc: type[SimProc]) -> None:
-    """The docs' example: a 2 s power fault at t = 10 s (FAST STOP, 000 App. B SF_POWER_FAULT) in
+    """The docs' example: a 2 s power fault at t = 5 s (FAST STOP, 000 App. B SF_POWER_FAULT) in
     whatever step it catches the SCL cycle (002 App. D); it acknowledges, homes and finishes."""
     sim = sim_proc("--part", "22", "--scenario", str(DOCS / "fast-stop-recovery.toml"), modbus=True)
     # 12 cycles (~1.5 s each) outlast t = 10 s on a fast idle machine too; 6 could end just before the fault
     r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "12", "--timeout", "50",
             "--recover-fast-stop", timeout=180)
     assert r.returncode == 0, r.stdout + r.stderr
-    sim.wait_for("power")  # the fault did strike during the run (t = 10 s; the demo takes longer)
+    sim.wait_for("power")  # the fault did strike during the run (t = 5 s; six cycles take about 9 s)
     done = r.stdout.strip().splitlines()[-1]
     assert done.startswith("done: 12 cycle(s)") and "timed out" not in done, r.stdout[-3000:]
     recoveries = re.search(r"(\d+) error recovery", done)

@@ -41,11 +41,14 @@ def _open_jsonl(path: Path) -> TextIO:
 @click.option("--control", "control", default=None, metavar="[HOST:]PORT",
               help="Serve the network faults' control API here (0: any free port): "
                    "wsg world --sim http://127.0.0.1:PORT net latency --ms 200 switches them at runtime.")
+@click.option("--udp-idle", type=click.FloatRange(0.1, 86400), default=60.0, show_default=True, metavar="S",
+              help="UDP: close a client's upstream socket after S seconds without traffic.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON lines instead of text lines.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing per frame (files only).")
 @click.pass_context
 def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl: Path | None,
-          log_rate: int, net_faults: tuple[str, ...], control: str | None, as_json: bool, quiet: bool) -> None:
+          log_rate: int, net_faults: tuple[str, ...], control: str | None, udp_idle: float, as_json: bool,
+          quiet: bool) -> None:
     """Forward a client's traffic to a gripper unchanged and show every frame.
 
     Point your own client (ROS node, PLC, script) at the --listen port instead of the gripper. Bytes
@@ -98,7 +101,8 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
     else:
         log = CommLog(text=sys.stdout, jsonl=jsonl_file)
     try:
-        tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap, log_rate=log_rate, net=net)
+        tap = Proxy(target, port, host or "127.0.0.1", log=log, pcap=pcap, log_rate=log_rate, net=net,
+                    udp_idle=udp_idle)
     except (ValueError, OSError) as exc:
         if jsonl_file is not None:
             jsonl_file.close()

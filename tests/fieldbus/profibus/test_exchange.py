@@ -32,15 +32,17 @@ def test_write_then_read_is_one_bus_cycle(pb_sim: SimThread) -> None:
     async def main() -> tuple[bytes, bytes]:
         ex = await open_exchange(f"profibus://{ad.path}?address=7&baudrate=19200", timeout=10)
         try:
-            out = OutputImage(if_flags=0x3C, width=4200).pack()
-            await ex.write_outputs(out)
-            first = await ex.read_inputs()
+            for i in range(1, 30):            # every read answers a request that carried the write before it
+                out = OutputImage(if_flags=i, width=100 * i).pack()
+                await ex.write_outputs(out)
+                first = await ex.read_inputs(timeout=5)
+                assert pb_sim.call(lambda: ad.controller.output_bytes) == out, i
             return out, first
         finally:
             await ex.close()
 
     out, first = asyncio.run(main())
-    assert pb_sim.call(lambda: ad.controller.output_bytes) == out   # the read came after the write
+    assert pb_sim.call(lambda: ad.controller.output_bytes) == out
     assert InputImage.unpack(first).state == GripperState.IDLE
     assert ad.slave.master == 2
 

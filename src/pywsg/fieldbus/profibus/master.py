@@ -6,8 +6,10 @@ default 2, the manual's demo PLC) and ``watchdog_ms`` (default 1000; 0 off).
 
 pyprofibus (GPL-2.0+) is the optional extra ``pywsg[profibus]``: it is imported only when an exchange
 is opened, and a clear error says how to install it. Its DPM1 runs in a thread of its own (its state
-machine is polled); :meth:`ProfibusExchange.read_inputs` waits for the second Data_Exchange after
-the last write (the first may have been on the line with the old outputs), as a PLC scan sees it.
+machine is polled). :meth:`ProfibusExchange.read_inputs` waits for the answer to a Data_Exchange that
+carried the last written outputs: the exchange watches the requests its PHY sends (outputs and FCB), so
+neither a request already on the line with the old outputs nor a repeated request (same FCB, answered
+from the slave's stored response, not applied) counts.
 """
 
 from __future__ import annotations
@@ -99,6 +101,22 @@ def _import_pyprofibus() -> Any:
     return pyprofibus
 
 
+def _tracking_phy(pb: Any, port: str, baudrate: int) -> Any:
+    """pyprofibus's serial PHY, telling ``phy.on_send(bytes)`` each telegram it puts on the line."""
+
+    class TrackingPhy(pb.phy_serial.CpPhySerial):  # type: ignore[misc]
+        __slots__ = ("on_send",)
+
+        def sendData(self, telegramData: Any, srd: Any) -> None:   # pyprofibus's method and names
+            self.on_send(bytes(telegramData))
+            super().sendData(telegramData, srd)
+
+    phy = TrackingPhy(port=port)
+    phy.on_send = lambda data: None
+    phy.setConfig(baudrate=baudrate)
+    return phy
+
+
 class ProfibusExchange:
     """An ``ImageExchange`` over PROFIBUS DP: pyprofibus's DPM1 driving one WSG slave."""
 
@@ -110,7 +128,10 @@ class ProfibusExchange:
         self._outputs = bytes(OUTPUT_SIZE)
         self._inputs: bytes | None = None
         self._cycles = 0           # Data_Exchange responses received
-        self._due = 0              # the cycle whose request carries the last written outputs
+        self._seq = 0              # writes so far
+        self._inflight = 0         # the write whose outputs the last new (not repeated) request carried
+        self._applied = -1         # the write the last response answered
+        self._last_fcb: int | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"profibus-{url.port}", daemon=True)
         self.error: str | None = None
@@ -131,13 +152,15 @@ class ProfibusExchange:
                      f"input_size = {OUTPUT_SIZE}\noutput_size = {INPUT_SIZE}\nwatchdog_ms = {u.watchdog_ms}\n")
         try:
             conf = pb.PbConf(io.StringIO(conf_text))
-            master = conf.makeDPM()
+            phy = _tracking_phy(pb, u.port, u.baudrate)
+            master = conf.makeDPM(phy=phy)
         except pb.ProfibusError as exc:
             raise ProfibusError(f"{u}: {' '.join(str(exc).split())}") from None   # one line
         desc = conf.slaveConfs[0].makeDpSlaveDesc()
         master.addSlave(desc)
         master.initialize()
         self = cls(u, master, desc)
+        phy.on_send = self._on_send
         self._thread.start()
         deadline = time.monotonic() + timeout
         while self._inputs is None:
@@ -161,11 +184,23 @@ class ProfibusExchange:
                     with self._lock:
                         self._inputs = bytes(data)
                         self._cycles += 1
+                        self._applied = self._inflight
                 else:
                     time.sleep(0.0002)   # pyprofibus polls; a short nap keeps it off a whole core
         except Exception as exc:  # the PHY failed (port gone): reported by the next read
             self.error = f"{self.url}: {exc}"
             log.warning("PROFIBUS master stopped: %s", self.error)
+
+    def _on_send(self, data: bytes) -> None:
+        """A telegram going out (DPM thread): note which write a Data_Exchange request carries."""
+        if len(data) != 14 or data[0] != 0xA2 or data[1] != self.url.address or not data[3] & 0x40:
+            return                                     # not an SD3 Data_Exchange request to our slave
+        fc = data[3]
+        repeat = bool(fc & 0x10) and (fc & 0x20) == self._last_fcb
+        self._last_fcb = fc & 0x20
+        if not repeat:                                 # a repeat is answered from the stored response
+            with self._lock:
+                self._inflight = self._seq if data[4:12] == self._outputs else self._seq - 1
 
     @property
     def cycles(self) -> int:
@@ -178,16 +213,17 @@ class ProfibusExchange:
             raise ValueError(f"outputs are {OUTPUT_SIZE} bytes")
         with self._lock:
             self._outputs = bytes(data)
-            # A request may be on the line with the old outputs: its response is the next cycle,
-            # the one after carries these.
-            self._due = self._cycles + 2
+            self._seq += 1
 
     async def read_inputs(self, timeout: float = 1.0) -> bytes:
-        """The 12 input bytes of the second Data_Exchange after the last write (``timeout`` in s)."""
+        """The 12 input bytes answering a Data_Exchange that carried the last written outputs
+        (``timeout`` in s)."""
         deadline = time.monotonic() + timeout
+        with self._lock:
+            want = self._seq
         while True:
             with self._lock:
-                if self._cycles >= self._due and self._inputs is not None:
+                if self._applied >= want and self._inputs is not None:
                     return self._inputs
             if self.error:
                 raise ProfibusError(self.error)
