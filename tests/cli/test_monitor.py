@@ -51,7 +51,8 @@ def test_monitor_in_a_pty(sim: Sim, spawn: Callable[..., subprocess.Popen[bytes]
     steps: list[tuple[Callable[[str], bool], str | bytes, str]] = [
         (lambda p: "Width" in p, "move", "the first panel"),
         (moved, b"f", "a width below 100 mm after `wsg move 20`"),
-        (lambda p: "SF_FAST_STOP" in p, b"a", "SF_FAST_STOP after the f key"),
+        (lambda p: "SF_FAST_STOP" in p and "fast-stop: E_SUCCESS" in ANSI.sub(b"", out).decode("utf-8", "replace"),
+         b"a", "SF_FAST_STOP and the fast-stop reply after the f key"),
         (lambda p: "SF_FAST_STOP" not in p and "ack: E_SUCCESS" in ANSI.sub(b"", out).decode("utf-8", "replace"),
          b"q", "the acknowledged FAST STOP after the a key"),
     ]

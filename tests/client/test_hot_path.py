@@ -42,10 +42,11 @@ async def test_async_short_timeout_after_long_one_fires_on_time() -> None:
             g.timeout = 0.1
             with pytest.raises(TimeoutError):
                 await g.temperature()  # earlier deadline than the one armed: the timer moves up
-            assert 0.09 < time.monotonic() - t0 < 0.4
+            # before the 0.6 s deadline armed first: the timer moved up (only the lower bound is the machine's)
+            assert 0.09 < time.monotonic() - t0 < 0.6
             with pytest.raises(TimeoutError) as ei:
                 await long
-            assert 0.55 < time.monotonic() - t0 < 1.2
+            assert time.monotonic() - t0 > 0.55
             assert "0.6 s" in str(ei.value)
             g.timeout = 1.0
             assert await g.loop(b"after") == b"after"
@@ -63,14 +64,14 @@ def test_sync_timeouts_follow_the_timeout_asked_for() -> None:
         t0 = time.monotonic()
         with pytest.raises(TimeoutError):
             g.temperature()
-        assert 0.095 < time.monotonic() - t0 < 0.35
+        assert 0.095 < time.monotonic() - t0 < 1.0  # the 0.1 s asked for, not the default 1 s
         g.timeout = 2.0  # longer than the receive timeout set: the 0.3 s reply must still arrive
         assert g.gripper_state() == GripperState.HOLDING
         g.timeout = 0.05  # shorter again: must not wait the 2 s still set in the kernel
         t0 = time.monotonic()
         with pytest.raises(TimeoutError):
             g.temperature()
-        assert 0.045 < time.monotonic() - t0 < 0.3
+        assert 0.045 < time.monotonic() - t0 < 2.0  # not the 2 s still set in the kernel
 
 
 # ---------------------------------------------------------------- verified-frame cache
@@ -201,13 +202,20 @@ def test_blocking_call_fallbacks_split_other_id_first_two_in_one_segment() -> No
 
 def test_blocking_call_timeout_without_waiter_leaves_a_ghost() -> None:
     n = [0]
+    timed_out, late_sent = threading.Event(), threading.Event()
+
+    def send_late(conn: RawConn) -> None:  # the first reply, only after the call gave up (no race with load)
+        timed_out.wait(30)
+        conn.send(state_reply(GripperState.NO_PART))
+        late_sent.set()
 
     def handler(conn: RawConn, f: Frame) -> None:
         if f.command_id == Command.GET_GRIPPER_STATE:
             n[0] += 1
             if n[0] == 1:
-                threading.Timer(0.25, conn.send, args=(state_reply(GripperState.NO_PART),)).start()
+                threading.Thread(target=send_late, args=(conn,), daemon=True).start()
             else:
+                late_sent.wait(30)  # the late reply is on the wire before this one
                 conn.send(state_reply(GripperState.HOLDING))
         else:
             echo_handler(conn, f)
@@ -216,6 +224,7 @@ def test_blocking_call_timeout_without_waiter_leaves_a_ghost() -> None:
         assert g.demux.alone(Command.GET_GRIPPER_STATE)  # so the first call takes the waiter-less path
         with pytest.raises(TimeoutError):
             g.gripper_state()
-        time.sleep(0.3)
+        timed_out.set()
+        g.timeout = 30  # generous: the second reply follows the late one at once
         assert g.gripper_state() == GripperState.HOLDING  # the late NO_PART went to the ghost
         assert g.demux.late == 1

@@ -20,7 +20,6 @@ import ipaddress
 import json
 import logging
 import os
-import re
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 
 from ..fieldbus.profibus import DEFAULT_STATION_ADDRESS
+from ..fieldbus.profinet.station import name_error as profinet_name_error
 from .context import WebContext, error
 
 log = logging.getLogger(__name__)
@@ -65,26 +65,6 @@ class InterfaceConfig:
     ip_address: str = "192.168.1.20"
     netmask: str = "255.255.255.0"
     gateway: str = ""  # empty: none
-
-
-_LABEL = re.compile(r"^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$")
-_PORT_NAME = re.compile(r"^port-\d{3}(-\d{5})?$")
-
-
-def profinet_name_error(name: str) -> str | None:
-    """IEC 61158-6-10 NameOfStation rules: DNS-like labels of a-z 0-9 '-', at most 240 characters."""
-    if name == "":
-        return None
-    if len(name) > 240:
-        return "at most 240 characters"
-    labels = name.split(".")
-    if not all(_LABEL.match(lb) for lb in labels):
-        return "labels of 1..63 characters a-z, 0-9 and '-' (not first or last), separated by '.'"
-    if _PORT_NAME.match(labels[0]):
-        return "must not start with port-xyz (reserved)"
-    if re.fullmatch(r"\d+\.\d+\.\d+\.\d+", name):
-        return "must not have the form of an IP address"
-    return None
 
 
 def validate(values: dict[str, Any]) -> dict[str, str]:
