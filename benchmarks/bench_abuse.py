@@ -23,7 +23,9 @@ with ``ulimit -n 1024``: 1,100 idle connections each to the Modbus/TCP and web p
 sim kept, whether the command port still answers); a 128 MiB chunked body to /api/settings and 4 x
 256 MiB chunked bodies to POST /login without a session (bytes the sim took, its answer, its peak RSS
 growth); 1,001 cookieless GETs of /static/style.css while a user is logged in (is the user still
-logged in); and pipelined Modbus requests, 3 and 1,000 in one TCP write (answers received).
+logged in); pipelined Modbus requests, 3 and 1,000 in one TCP write (answers received); and 1 MiB of
+pipelined HTTP requests on one connection (``GET /api/world`` logged in, 404s, a bad Host header) while a
+TCP client sends Loop requests (answers, sim CPU, RSS growth, the TCP client's wait).
 
     .venv/bin/python benchmarks/bench_abuse.py [--mib 1] [--only NAME,...] [--sim-path DIR]
 
@@ -514,6 +516,38 @@ def modbus_pipelined(sim: WebSim, n: int) -> str:
     return f"{len(got) // 17} of {n} answered, {dt * 1e3:.0f} ms, CPU {sim.cpu() - cpu0:.2f} s"
 
 
+def web_pipelined(sim: WebSim, path: str, host: str = "", login: bool = True) -> str:
+    """1 MiB of ``GET path`` pipelined on one connection (``host``: the Host header, default the
+    sim's own), while a TCP client sends Loop requests: answers, sim CPU, RSS growth, the other's wait."""
+    cookie = f"Cookie: {_login(sim)}\r\n" if login else ""
+    one = f"GET {path} HTTP/1.1\r\nHost: {host or f'127.0.0.1:{sim.web}'}\r\n{cookie}\r\n".encode()
+    blob = one * (MIB // len(one))
+    waiter = TcpWaiter(sim.tcp)
+    waiter.start()
+    time.sleep(0.2)
+    rss0, cpu0, t0 = sim.ps.memory_info().rss, sim.cpu(), time.perf_counter()
+    peak_reset(sim.proc.pid)
+    got = 0
+    with socket.create_connection(("127.0.0.1", sim.web), timeout=120) as s:
+        def send() -> None:
+            with contextlib.suppress(OSError):  # the sim closes the connection once it is done
+                s.sendall(blob)
+
+        threading.Thread(target=send, daemon=True).start()
+        with contextlib.suppress(OSError):
+            while chunk := s.recv(65536):
+                got += chunk.count(b"HTTP/1.1 ")  # a status line split across reads is missed: rare
+    dt = time.perf_counter() - t0
+    cpu = sim.cpu() - cpu0
+    grown = (peak(sim.proc.pid) - rss0) / 1e6
+    waiter.stop.set()
+    waiter.join(15)
+    w = sorted(waiter.waits) or [0.0]
+    p99 = w[min(len(w) - 1, int(len(w) * 0.99))]
+    return (f"{got} of {len(blob) // len(one)} answered in {dt:.1f} s, CPU {cpu:.2f} s, RSS +{grown:.1f} MB, "
+            f"other client p50/p99/max {w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
+
+
 def interfaces(only: list[str]) -> None:
     """The Modbus/TCP and web rows: one sim each, so one attack cannot spoil the next."""
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
@@ -530,6 +564,9 @@ def interfaces(only: list[str]) -> None:
         ("Modbus/TCP: 1,000 requests in one write", lambda s: modbus_pipelined(s, 1000)),
         ("Modbus/TCP: 6,000 requests in one write", lambda s: modbus_pipelined(s, 6000)),
         ("Modbus/TCP: 1 MiB of requests in one write", lambda s: modbus_pipelined(s, MIB // 12)),
+        ("web: 1 MiB pipelined GET /api/world", lambda s: web_pipelined(s, "/api/world")),
+        ("web: 1 MiB pipelined 404s", lambda s: web_pipelined(s, "/no/such/page")),
+        ("web: 1 MiB pipelined, bad Host", lambda s: web_pipelined(s, "/api/world", host="evil.example")),
     ]
     for name, attack in rows:
         if only and not any(o in name for o in only):

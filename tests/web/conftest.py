@@ -219,8 +219,8 @@ def wait_for(cond: Callable[[], bool], timeout: float = 30.0, step: float = 0.02
     raise AssertionError(f"not met within {timeout:g} s: {what}")
 
 
-def read_status(s: socket.socket) -> str:
-    """Read one whole frame from a raw TCP socket and return its status name."""
+def read_frame(s: socket.socket) -> Frame:
+    """Read one whole frame (preamble, header, payload, CRC: 000 §1.2.1) from a raw TCP socket."""
     head = b""
     while len(head) < 6:
         head += s.recv(6 - len(head))
@@ -228,5 +228,10 @@ def read_status(s: socket.socket) -> str:
     rest = b""
     while len(rest) < size + 2:
         rest += s.recv(size + 2 - len(rest))
-    status = Frame(head[3], rest[:size]).status
+    return Frame(head[3], rest[:size])
+
+
+def read_status(s: socket.socket) -> str:
+    """Read one whole frame from a raw TCP socket and return its status name."""
+    status = read_frame(s).status
     return status.name if hasattr(status, "name") else str(status)

@@ -25,7 +25,7 @@ from pywsg.web.pages import PAGES
 
 from ..device.test_reads_change_nothing import READS
 from ..fieldbus.raw_modbus import adu, exchange
-from .conftest import LiveSim, client_for
+from .conftest import LiveSim, client_for, read_frame
 
 
 @pytest.fixture
@@ -53,17 +53,6 @@ def _get_paths(web: httpx.Client) -> list[str]:
     return sorted(set(api) | set(PAGES) | {"/", "/help", "/api/openapi.json"})
 
 
-def _read_frame(s: socket.socket) -> Frame:
-    head = b""
-    while len(head) < 6:
-        head += s.recv(6 - len(head))
-    size = struct.unpack_from("<H", head, 4)[0]
-    rest = b""
-    while len(rest) < size + 2:
-        rest += s.recv(size + 2 - len(rest))
-    return Frame(head[3], rest[:size])
-
-
 def _read_everything(fresh: LiveSim, web: httpx.Client) -> None:
     before = _device(fresh)
     with socket.create_connection(("127.0.0.1", fresh.tcp.port), timeout=5) as tcp:
@@ -73,7 +62,7 @@ def _read_everything(fresh: LiveSim, web: httpx.Client) -> None:
             assert _device(fresh) == before, f"GET {path} changed the gripper"
         for cid, payload in READS.items():
             tcp.sendall(Frame(cid, payload).encode())
-            assert _read_frame(tcp).command_id == cid
+            assert read_frame(tcp).command_id == cid
             assert _device(fresh) == before, f"{cid:02X}h changed the gripper"
         # Modbus/TCP: coils, discrete inputs, holding registers (the PLC's outputs), input registers
         for fc, count in ((1, COILS), (2, DISCRETE_INPUTS), (3, OUTPUT_REGISTERS), (4, INPUT_REGISTERS)):
@@ -81,7 +70,7 @@ def _read_everything(fresh: LiveSim, web: httpx.Client) -> None:
             assert pdu[0] == fc, pdu.hex()
             assert _device(fresh) == before, f"Modbus FC{fc} changed the gripper"
         tcp.sendall(Frame(0x07, b"").encode())  # announced disconnect: no FAST STOP at teardown
-        assert _read_frame(tcp).command_id == 0x07
+        assert read_frame(tcp).command_id == 0x07
 
 
 def test_no_read_by_any_interface_changes_the_gripper(fresh: LiveSim) -> None:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import click
 
@@ -58,15 +58,27 @@ def decode(hexdata: tuple[str, ...], as_json: bool, direction: str | None, path:
         sys.exit(1)
 
 
+class _ToJson(Protocol):
+    def to_json(self) -> dict[str, Any]: ...
+
+
+_T = TypeVar("_T", bound=_ToJson)
+
+
 def emit(frames: list[DecodedFrame], as_json: bool) -> None:
     """Print decoded frames as text or JSON (shared by file and capture input)."""
+    _print_blocks(frames, as_json, lambda f: f.lines())
+
+
+def _print_blocks(frames: Sequence[_T], as_json: bool, lines: Callable[[_T], list[str]]) -> None:
+    """Print ``frames`` as one JSON list, or as text blocks of ``lines(frame)`` apart by a blank line."""
     if as_json:
         click.echo(json.dumps([f.to_json() for f in frames], indent=2, ensure_ascii=False))
         return
     for i, f in enumerate(frames):
         if i:
             click.echo()
-        click.echo("\n".join(f.lines()))
+        click.echo("\n".join(lines(f)))
 
 
 def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = False,
@@ -106,14 +118,7 @@ def decode_file(path: str | Path, ports: Collection[int] = (), as_json: bool = F
 
 def _print_framed(frames: Sequence[LoggedFrame | CapturedFrame], as_json: bool, none: str) -> None:
     """Print frames with a header line each (time, direction), or as one JSON list."""
-    if as_json:
-        click.echo(json.dumps([f.to_json() for f in frames], indent=2, ensure_ascii=False))
-        return
-    for i, f in enumerate(frames):
-        if i:
-            click.echo()
-        click.echo(f.header())
-        click.echo("\n".join(f.decoded.lines()))
+    _print_blocks(frames, as_json, lambda f: [f.header(), *f.decoded.lines()])
     if not frames:
         click.echo(none, err=True)
 

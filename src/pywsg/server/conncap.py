@@ -20,6 +20,7 @@ import logging
 import os
 import socket
 import struct
+import types
 from collections.abc import Callable
 from typing import Any
 
@@ -188,13 +189,32 @@ def cap_modbus_server(server: Any, limit: int, idle_timeout: float | None = None
     return cap
 
 
-def capped_http_protocol(limit: int, idle_timeout: float | None = None) -> type[asyncio.Protocol]:
+#: Bytes handed to the HTTP parser at a time, so a pipelined flood is cut within one slice of the
+#: request that spends the connection's budget instead of after a whole 256 KiB read.
+HTTP_FEED_SLICE = 4096
+
+
+#: Stands in for a request dropped past the budget: "already answered", so uvicorn ignores its body.
+_DROPPED = types.SimpleNamespace(response_complete=True, disconnected=True, keep_alive=False)
+
+
+def capped_http_protocol(limit: int, idle_timeout: float | None = None,
+                         requests_per_connection: int | None = 100) -> type[asyncio.Protocol]:
     """uvicorn's HTTP protocol (``uvicorn.Config(http=...)``) refusing connections beyond ``limit``
     open HTTP and WebSocket connections (or into the descriptor reserve), and closing one with no
-    data either way for ``idle_timeout`` s (a WebSocket the server pushes to is not idle)."""
+    data either way for ``idle_timeout`` s (a WebSocket the server pushes to is not idle).
+
+    ``requests_per_connection`` (None: no limit) is the keep-alive request budget, like Apache's
+    ``MaxKeepAliveRequests`` / nginx's ``keepalive_requests``: the last request it allows is answered
+    with ``Connection: close``; anything pipelined after it is read and dropped, unparsed, and the
+    connection closes once the answers before it are out. A browser opens a new connection; a client
+    pipelining a megabyte of requests costs at most the budget's worth of requests."""
     from uvicorn.protocols.http.auto import AutoHTTPProtocol
 
     base: Any = AutoHTTPProtocol
+    # h11 serves pipelined requests one at a time from its own buffer; the budget hooks httptools'
+    # per-request callback (uvicorn's choice when httptools is installed, as here)
+    budget = requests_per_connection if hasattr(base, "on_headers_complete") else None
 
     cap = Cap("web", limit, lambda: 0)
 
@@ -213,10 +233,36 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None) -> type[
                 self._idle = IdleWatch("web", transport, idle_timeout)
             super().connection_made(transport)
 
+        _requests = 0
+        _spent = False
+
         def data_received(self, data: bytes) -> None:
             if self._idle is not None:
                 self._idle.touch()
-            super().data_received(data)
+            if budget is None:
+                super().data_received(data)
+                return
+            for i in range(0, len(data), HTTP_FEED_SLICE):
+                if self._spent or self.transport.is_closing():
+                    return  # past the budget: dropped unparsed, the connection closes after the answers
+                super().data_received(data[i:i + HTTP_FEED_SLICE])
+
+        def on_headers_complete(self) -> None:
+            if self._spent:
+                # pipelined in the same slice after the last allowed request: never run; a finished
+                # stand-in cycle makes the parser callbacks ignore its body
+                self.cycle = _DROPPED
+                return
+            self._requests += 1
+            before = self.cycle
+            super().on_headers_complete()
+            if budget is not None and self._requests >= budget:
+                self._spent = True
+                if self.cycle is not before:
+                    self.cycle.keep_alive = False  # answered with Connection: close, then closed
+
+        def _should_upgrade(self) -> bool:
+            return not self._spent and bool(super()._should_upgrade())
 
         def connection_lost(self, exc: Exception | None) -> None:
             if self._idle is not None:

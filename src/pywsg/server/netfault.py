@@ -90,13 +90,15 @@ def _num(params: Mapping[str, Any], name: str, default: float, lo: float = 0.0, 
     return out
 
 
-def _on(params: Mapping[str, Any]) -> bool:
+def on_param(params: Mapping[str, Any], error: Callable[[str, str], Exception] = NetFaultError) -> bool:
+    """The switch ``params["on"]`` (default on): a bool, or on/off, true/false, 1/0 in any case.
+    Anything else raises ``error("on", reason)`` (the world's faults share this rule)."""
     value = params.get("on", True)
     if isinstance(value, bool):
         return value
     if isinstance(value, str) and value.lower() in ("on", "off", "true", "false", "1", "0"):
         return value.lower() in ("on", "true", "1")
-    raise NetFaultError("on", f"must be on/off (true/false), not {value!r}")
+    raise error("on", f"must be on/off (true/false), not {value!r}")
 
 
 _PARAMS = {
@@ -137,7 +139,7 @@ class NetFaults:
         unknown = set(p) - {*_PARAMS[kind], "on", "seed", "kind"}
         if unknown:
             raise NetFaultError(sorted(unknown)[0], f"not a parameter of {kind} ({', '.join(_PARAMS[kind])})")
-        on = _on(p)
+        on = on_param(p)
         if "seed" in p:
             self.rng.seed(int(_num(p, "seed", 0, 0, 2**63)))
         s = self.s

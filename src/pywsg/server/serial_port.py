@@ -17,7 +17,6 @@ import asyncio
 import errno
 import logging
 import os
-import tty
 from collections import deque
 from typing import Any
 
@@ -26,6 +25,7 @@ from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits, droppable
 from .netfault import Shaper, net_faults
 from .scheduler import DeviceRunner
+from .serial_line import SerialLine, open_line
 from .trace import log_replies
 
 log = logging.getLogger("pywsg.server.serial")
@@ -52,9 +52,8 @@ class SerialServer:
         self.path = ""
         self.session: Any = None
         self.dropped = 0
-        self._fd = -1
-        self._keep_fd = -1  # pty: our handle on the client side
-        self._serial: Any = None  # pyserial object for a real device
+        self._line = SerialLine()
+        self._fd = -1  # the line's, read on every byte
         self._out: deque[bytes] = deque()
         self._out_size = 0
         self._head_sent = 0  # bytes of the first queued entry already written
@@ -66,18 +65,8 @@ class SerialServer:
 
     async def start(self) -> SerialServer:
         self._loop = asyncio.get_running_loop()
-        if self.requested == "pty":
-            master, slave = os.openpty()
-            tty.setraw(slave)  # no echo, no line editing: the client sees bytes as sent
-            self.path = os.ttyname(slave)
-            self._fd, self._keep_fd = master, slave
-        else:
-            import serial  # pyserial: configures baud rate and 8N1 on a real port
-
-            self._serial = serial.Serial(self.requested, self.baudrate, timeout=0)
-            self._fd = self._serial.fileno()
-            self.path = self.requested
-        os.set_blocking(self._fd, False)
+        self._line = open_line(self.requested, self.baudrate)
+        self._fd, self.path = self._line.fd, self._line.path
         self.session = self.gripper.open_session("serial", peer=self.path, deliver=self.deliver)
         self._loop.add_reader(self._fd, self._on_readable)
         return self
@@ -195,10 +184,5 @@ class SerialServer:
         if self.session is not None:
             self.gripper.close_session(self.session)
             self.session = None
-        if self._serial is not None:
-            self._serial.close()
-        elif self._fd >= 0:
-            os.close(self._fd)
-        if self._keep_fd >= 0:
-            os.close(self._keep_fd)
-        self._fd = self._keep_fd = -1
+        self._line.close()
+        self._fd = -1

@@ -77,15 +77,6 @@ def _inside(params: Mapping[str, Any]) -> bool:
     raise WorldError("inside", f"must be true (gripped from inside) or false (from outside), not {_show(value)}")
 
 
-def _on(params: Mapping[str, Any]) -> bool:
-    value = params.get("on", True)
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, str) and value.lower() in ("on", "off", "true", "false", "1", "0"):
-        return value.lower() in ("on", "true", "1")
-    raise WorldError("on", f"must be on/off (true/false), not {value!r}")
-
-
 def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) -> str:
     """Carry out one world ``action`` on ``gripper``; returns what was done, in words.
 
@@ -173,8 +164,10 @@ def _net(gripper: Any, p: Mapping[str, Any]) -> str:
 
 
 def _fault(faults: Any, p: Mapping[str, Any], gripper: Any = None) -> str:
+    from ..server.netfault import on_param
+
     kind = str(p.get("kind", ""))
-    on = _on(p)
+    on = on_param(p, WorldError)
     state = "on" if on else "off"
     if kind == "ack":
         return world_faults.acknowledge_refused(gripper, on)

@@ -171,7 +171,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
                     sim_info: Any = None, settings_path: str | Path | None = None,
                     ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
                     allowed_hosts: Sequence[str] = (), max_connections: int = 64,
-                    idle_timeout: float | None = None) -> WebHandle:
+                    idle_timeout: float | None = None, requests_per_connection: int | None = 100) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -182,7 +182,9 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     ``allowed_hosts``: names besides the bound address, localhost, 127.0.0.1 and [::1] that the
     ``Host`` header may carry (e.g. ``["gripper.cell4.local"]``); others get 400 (DNS rebinding).
     ``max_connections``: open HTTP/WebSocket connections at a time; more are refused; one without data
-    either way for ``idle_timeout`` s is closed (None: never).
+    either way for ``idle_timeout`` s is closed (None: never). ``requests_per_connection``: the
+    keep-alive budget; the last allowed request is answered with ``Connection: close`` and what was
+    pipelined after it is dropped (None: no limit).
     """
     loopback = is_loopback_host(host)
     if not loopback and password is None:
@@ -199,7 +201,8 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     config = uvicorn.Config(
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, server_header=False, http=capped_http_protocol(max_connections, idle_timeout),
+        ws_ping_interval=None, server_header=False, http=capped_http_protocol(
+            max_connections, idle_timeout, requests_per_connection),
     )
     server = _Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")

@@ -63,7 +63,7 @@ async def test_a_device_path_is_opened_8e1_with_parity_checked(line: tuple[Profi
     iflag = termios.tcgetattr(ad._fd)[0]
     assert iflag & termios.INPCK and iflag & termios.IGNPAR          # parity errors dropped
     # Even parity asked for; a pty's kernel driver clears PARENB itself (CS8, no parity), a UART keeps it.
-    assert ad._serial.parity == "E" and ad._serial.bytesize == 8 and ad._serial.stopbits == 1
+    assert ad._line.serial.parity == "E" and ad._line.serial.bytesize == 8 and ad._line.serial.stopbits == 1
     assert ad.bus_state()["Bitrate"] == "9.6 kbit/s"                  # a real port: not "nominal"
 
 

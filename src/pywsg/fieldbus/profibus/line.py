@@ -18,10 +18,9 @@ import errno
 import logging
 import os
 import termios
-import tty
 from collections.abc import Callable
-from typing import Any
 
+from ...server.serial_line import SerialLine, open_line
 from . import fdl
 from .dp import BUS_NAME, DpSlave, DpState, ImagePort
 from .gsd import facts
@@ -82,9 +81,8 @@ class ProfibusAdapter:
         self.line_errors = 0
         self.dropped_responses = 0
         self.failure: str | None = None   # why the port stopped working
-        self._fd = -1
-        self._keep_fd = -1
-        self._serial: Any = None
+        self._line = SerialLine()
+        self._fd = -1  # the line's, read on every byte
         self._loop: asyncio.AbstractEventLoop | None = None
         self._timer: asyncio.TimerHandle | None = None
         self._closed = False
@@ -92,19 +90,14 @@ class ProfibusAdapter:
     async def start(self) -> ProfibusAdapter:
         self._loop = asyncio.get_running_loop()
         if self.requested == "pty":
-            master, slave = os.openpty()
-            tty.setraw(slave)
-            self.path = os.ttyname(slave)
-            self._fd, self._keep_fd = master, slave
+            self._line = open_line("pty", self.baudrate)
         else:
             import serial
 
-            self._serial = serial.Serial(self.requested, self.baudrate, bytesize=serial.EIGHTBITS,
-                                         parity=serial.PARITY_EVEN, stopbits=serial.STOPBITS_ONE, timeout=0)
-            self._fd = self._serial.fileno()
-            self.path = self.requested
-            _check_parity(self._fd)
-        os.set_blocking(self._fd, False)
+            self._line = open_line(self.requested, self.baudrate, bytesize=serial.EIGHTBITS,
+                                   parity=serial.PARITY_EVEN, stopbits=serial.STOPBITS_ONE)
+            _check_parity(self._line.fd)
+        self._fd, self.path = self._line.fd, self._line.path
         self._loop.add_reader(self._fd, self._on_readable)
         log.info("PROFIBUS DP slave %d on %s at %d bit/s", self.slave.address, self.path, self.baudrate)
         return self
@@ -140,12 +133,12 @@ class ProfibusAdapter:
         except BlockingIOError:
             return
         except OSError as exc:
-            if exc.errno == errno.EIO and self._serial is None:
+            if exc.errno == errno.EIO and self._line.serial is None:
                 return   # pty: no master side open (cannot happen while we keep our handle)
             self._lost(exc)
             return
         if not data:
-            if self._serial is not None:
+            if self._line.serial is not None:
                 self._lost(OSError("end of file"))
             return
         assert self._loop is not None
@@ -159,7 +152,7 @@ class ProfibusAdapter:
             response = slave.handle(ev, self._loop.time())
             if response is None:
                 continue
-            delay = slave.min_tsdr / self.baudrate if self._serial is not None else 0.0
+            delay = slave.min_tsdr / self.baudrate if self._line.serial is not None else 0.0
             if delay > 0.0002:   # below that, the time to get here has already passed it
                 self._loop.call_later(delay, self._respond, response)
             else:
@@ -213,10 +206,5 @@ class ProfibusAdapter:
             self._timer = None
         if self._loop is not None and self._fd >= 0:
             self._loop.remove_reader(self._fd)
-        if self._serial is not None:
-            self._serial.close()
-        elif self._fd >= 0:
-            os.close(self._fd)
-        if self._keep_fd >= 0:
-            os.close(self._keep_fd)
-        self._fd = self._keep_fd = -1
+        self._line.close()
+        self._fd = -1
