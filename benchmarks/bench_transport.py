@@ -336,7 +336,7 @@ def capacity(loop: str, side: str, seconds: float, limit_ms: float, probes: int,
     def ok(n: int) -> bool:
         r = bench_timing(loop, n, seconds, (side,), quiet=True, rounds=probes)[side]
         print(f"    {loop:8s} {side:8s} {n:4d} x 4 = {4 * n:5d} streams: {r[0]}  CPU {r[1]:5.1f} %  "
-              f"{'ok' if r[3] <= limit_ms else 'over'}", flush=True)
+              f"{'ok' if r[3] <= limit_ms else 'over' if r[3] != float('inf') else 'over (fell behind)'}", flush=True)
         return r[3] <= limit_ms
 
     if ok(start):
