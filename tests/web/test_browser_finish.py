@@ -390,6 +390,6 @@ def test_menu_and_header_follow_figure_1_of_the_fieldbus_manual(sim: LiveSim, pa
 
 def test_fidelity_records_where_the_manuals_name_things_differently() -> None:
     text = (Path(__file__).resolve().parents[2] / "docs" / "fidelity.md").read_text()
-    for words in ("| Menu names |", "Diagnosis -> Fieldbus Monitor", "| GRIP or GRASP |", "| Header |",
-                  "| Device tag after a restart |"):
+    for words in ("### Menu names", "Diagnosis -> Fieldbus Monitor", "### GRIP or GRASP", "### Header",
+                  "### Device tag after a restart"):
         assert words in text, words
