@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Iterator
 
 import pytest
 
@@ -19,15 +18,6 @@ from .conftest import LiveSim
 
 MIB = 1 << 20
 BUDGET = 100  # serve_web's default requests_per_connection
-
-
-@pytest.fixture(scope="module")
-def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("pipelined"))
-    try:
-        yield s
-    finally:
-        s.close()
 
 
 def _request(port: int, path: str) -> bytes:
@@ -64,24 +54,24 @@ def _pipeline(port: int, blob: bytes, timeout: float) -> bytes:
     return bytes(got)
 
 
-def _cpu(live: LiveSim) -> float:
+def _cpu(sim: LiveSim) -> float:
     """CPU seconds of the loop thread that serves the web interface."""
-    return live.call(time.thread_time)
+    return sim.call(time.thread_time)
 
 
 @pytest.mark.parametrize("path", ["/api/world", "/no/such/page"], ids=["world", "404"])
-def test_one_mebibyte_of_pipelined_requests_costs_one_budget(live: LiveSim, path: str) -> None:
-    port = live.web.port
+def test_one_mebibyte_of_pipelined_requests_costs_one_budget(sim: LiveSim, path: str) -> None:
+    port = sim.web.port
     one = _request(port, path)
     # baseline: the budget's worth of the same request, pipelined the same way
-    t0 = _cpu(live)
+    t0 = _cpu(sim)
     base_answer = _pipeline(port, one * BUDGET, timeout=60.0)
-    base = _cpu(live) - t0
+    base = _cpu(sim) - t0
     assert base_answer.count(b"HTTP/1.1 ") == BUDGET, "the baseline answers every request of the budget"
 
-    t0 = _cpu(live)
+    t0 = _cpu(sim)
     answer = _pipeline(port, one * (MIB // len(one)), timeout=max(60.0, 40 * base))
-    flood = _cpu(live) - t0
+    flood = _cpu(sim) - t0
     answers = answer.count(b"HTTP/1.1 ")
     # the budget is answered, in order, the last one announcing the close; nothing after it
     assert answers == BUDGET, f"{answers} answers to {MIB // len(one)} pipelined requests"
@@ -92,9 +82,9 @@ def test_one_mebibyte_of_pipelined_requests_costs_one_budget(live: LiveSim, path
     assert flood < 4 * base + 0.05, f"1 MiB pipelined cost {flood:.3f} s CPU, {BUDGET} requests {base:.3f} s"
 
 
-def test_ordinary_keep_alive_use_is_not_cut(live: LiveSim) -> None:
+def test_ordinary_keep_alive_use_is_not_cut(sim: LiveSim) -> None:
     """Fewer requests than the budget on one connection: all answered, the connection stays open."""
-    port = live.web.port
+    port = sim.web.port
     with socket.create_connection(("127.0.0.1", port), timeout=30.0) as s:
         for _ in range(3):
             s.sendall(_request(port, "/api/world") * 10)
