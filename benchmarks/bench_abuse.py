@@ -700,6 +700,7 @@ def proxy_cases(size: int, only: list[str]) -> None:
         ("proxy: random bytes (baseline)", os.urandom(size), False),
         ("proxy: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), False),
         ("proxy: valid 50h requests", repeat(Frame(0x50).encode(), size), False),
+        ("proxy: valid Loop requests (06h, 1 byte)", repeat(Frame(0x06, b"x").encode(), size), False),
         ("proxy --pcap: 70,000 zero bytes then 06h", b"\0" * 70_000 + Frame(0x06, b"x").encode(), True),
         ("proxy --pcap: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), True),
     ]

@@ -156,6 +156,30 @@ def test_wsg_sim_web_allowed_host_admits_that_name_only() -> None:
     assert rc == 0
 
 
+def test_wsg_sim_web_request_rate_options() -> None:
+    """--web-request-rate/--web-request-burst set the per-client limit; rate 0 turns it off."""
+    import http.client
+
+    def statuses(*args: str) -> list[int]:
+        proc, lines = start_sim("--tcp-port", "off", "--udp-port", "off", "--serial", "off", "--web-port", "0",
+                                *args, lines=1)
+        try:
+            port = int(lines[0].rsplit(":", 1)[1].rstrip("/"))
+            got = []
+            for _ in range(4):
+                conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+                conn.request("GET", "/api/state")
+                got.append(conn.getresponse().status)
+                conn.close()
+            return got
+        finally:
+            rc, _ = stop(proc)
+            assert rc == 0
+
+    assert statuses("--web-request-rate", "0.01", "--web-request-burst", "2") == [200, 200, 429, 429]
+    assert statuses("--web-request-rate", "0", "--web-request-burst", "2") == [200] * 4
+
+
 def test_wsg_sim_port_in_use_is_a_clear_error() -> None:
     blocker = socket.socket()
     blocker.bind(("127.0.0.1", 0))

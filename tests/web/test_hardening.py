@@ -19,10 +19,32 @@ import pytest
 
 from pywsg.web.context import MAX_BODY
 
-from .conftest import LiveSim, client_for
+from .conftest import REMOTE_PASSWORD, LiveSim, client_for
 from .test_security import login
 
 CHUNK = b"x" * 65536
+
+
+# The flood tests below send 1,001 requests from one address: the per-client rate limit
+# (tests/web/test_request_rate.py) would answer 429 long before the session store's eviction, the
+# defence tested here, is reached (as it is by a flood from many addresses). So this module's sims
+# run without it.
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    s = LiveSim(tmp_path_factory.mktemp("hardening"), request_rate=None)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+@pytest.fixture(scope="module")
+def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD, request_rate=None)
+    try:
+        yield s
+    finally:
+        s.close()
 
 
 @pytest.fixture(scope="module")

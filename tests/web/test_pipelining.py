@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import socket
 import time
+from collections.abc import Iterator
 
 import pytest
 
@@ -18,6 +19,17 @@ from .conftest import LiveSim
 
 MIB = 1 << 20
 BUDGET = 100  # serve_web's default requests_per_connection
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+    """Without the per-client rate limit (tests/web/test_request_rate.py): these floods come from one
+    address, and the limit would answer 429 long before the keep-alive budget tested here."""
+    s = LiveSim(tmp_path_factory.mktemp("pipelining"), request_rate=None)
+    try:
+        yield s
+    finally:
+        s.close()
 
 
 def _request(port: int, path: str) -> bytes:

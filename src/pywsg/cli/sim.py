@@ -123,6 +123,11 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
+@click.option("--web-request-rate", type=click.FloatRange(0, 100000), default=20.0, show_default=True,
+              metavar="PER_S", help="Web requests per second per client address on average (0: no limit); "
+              "over it a request is answered 429 Too Many Requests.")
+@click.option("--web-request-burst", type=click.IntRange(1, 1000000), default=200, show_default=True,
+              help="Web requests a client address may make at once before --web-request-rate applies.")
 @click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
               help="Close a Modbus/TCP or web connection after this many seconds without data either way "
                    "(0: never). A polling master is never idle.")
@@ -175,6 +180,8 @@ def sim(
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
+    web_request_rate: float,
+    web_request_burst: int,
     idle_timeout: float,
     settings_file: Path | None,
     count: int,
@@ -258,7 +265,8 @@ def sim(
         clock=_scaled_clock(time_scale),
         limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
                       idle_timeout=idle_timeout),
-        web_options={"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {},
+        web_options={**({"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {}),
+                     "request_rate": web_request_rate or None, "request_burst": web_request_burst},
     )
 
     as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import json
 import logging
 import os
 import socket
@@ -23,6 +24,8 @@ import struct
 import types
 from collections.abc import Callable
 from typing import Any
+
+from .ratelimit import RequestRate, client_key, retry_after
 
 log = logging.getLogger("pywsg.server.conncap")
 
@@ -189,17 +192,44 @@ def cap_modbus_server(server: Any, limit: int, idle_timeout: float | None = None
     return cap
 
 
+REFUSAL_LOG_INTERVAL = 10.0
+"""Seconds between two log lines about requests refused for their rate."""
+
+OVERFLOW_KEY = "?"
+"""Rate-limit key of a connection whose peer address is unknown."""
+
 #: Bytes handed to the HTTP parser at a time, so a pipelined flood is cut within one slice of the
 #: request that spends the connection's budget instead of after a whole 256 KiB read.
 HTTP_FEED_SLICE = 4096
 
 
 #: Stands in for a request dropped past the budget: "already answered", so uvicorn ignores its body.
-_DROPPED = types.SimpleNamespace(response_complete=True, disconnected=True, keep_alive=False)
+#: (``message_event``: uvicorn's connection_lost sets the current cycle's event.)
+_DROPPED = types.SimpleNamespace(response_complete=True, disconnected=True, keep_alive=False,
+                                 message_event=types.SimpleNamespace(set=lambda: None))
+
+
+def too_many_requests(rates: RequestRate, wait: float) -> Any:
+    """An ASGI app answering ``429 Too Many Requests`` with ``Retry-After`` and a JSON ``detail``
+    in the web interface's error style; ``wait``: seconds until the client has a token again."""
+    retry = retry_after(wait)
+    body = json.dumps({"detail": (
+        f"too many requests from your address: at most {rates.rate:g} per second on average, "
+        f"bursts of {rates.burst}; try again in {retry} s")}).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
+               (b"retry-after", str(retry).encode()), (b"cache-control", b"no-store"),
+               (b"connection", b"close")]
+
+    async def app(scope: Any, receive: Any, send: Any) -> None:
+        await send({"type": "http.response.start", "status": 429, "headers": headers})
+        await send({"type": "http.response.body", "body": body})
+
+    return app
 
 
 def capped_http_protocol(limit: int, idle_timeout: float | None = None,
-                         requests_per_connection: int | None = 100) -> type[asyncio.Protocol]:
+                         requests_per_connection: int | None = 100,
+                         rates: RequestRate | None = None) -> type[asyncio.Protocol]:
     """uvicorn's HTTP protocol (``uvicorn.Config(http=...)``) refusing connections beyond ``limit``
     open HTTP and WebSocket connections (or into the descriptor reserve), and closing one with no
     data either way for ``idle_timeout`` s (a WebSocket the server pushes to is not idle).
@@ -208,17 +238,29 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
     ``MaxKeepAliveRequests`` / nginx's ``keepalive_requests``: the last request it allows is answered
     with ``Connection: close``; anything pipelined after it is read and dropped, unparsed, and the
     connection closes once the answers before it are out. A browser opens a new connection; a client
-    pipelining a megabyte of requests costs at most the budget's worth of requests."""
+    pipelining a megabyte of requests costs at most the budget's worth of requests.
+
+    ``rates`` (None: no limit) is the per-client request rate limit, checked before the app sees the
+    request: a request from an address whose bucket is empty is answered ``429 Too Many Requests``
+    (:func:`too_many_requests`, in order after the answers before it) with ``Connection: close``, and
+    the rest of that connection is dropped unparsed like a spent budget. So a client over its rate
+    costs one short answer per connection, not a trip through the app per request."""
     from uvicorn.protocols.http.auto import AutoHTTPProtocol
 
     base: Any = AutoHTTPProtocol
     # h11 serves pipelined requests one at a time from its own buffer; the budget hooks httptools'
     # per-request callback (uvicorn's choice when httptools is installed, as here)
-    budget = requests_per_connection if hasattr(base, "on_headers_complete") else None
+    httptools = hasattr(base, "on_headers_complete")
+    budget = requests_per_connection if httptools else None
+    if rates is not None and not httptools:
+        log.warning("web: no httptools, so no request rate limit (pip install 'uvicorn[standard]')")
+        rates = None
 
     cap = Cap("web", limit, lambda: 0)
+    refusal_logged = [float("-inf")]  # loop time of the last "over the rate limit" log line
 
     class CappedHTTPProtocol(base):  # type: ignore[misc]
+        app: Any  # uvicorn's: the ASGI app this connection's requests run
         _refused = False
         _idle: IdleWatch | None = None
 
@@ -232,14 +274,17 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
             if idle_timeout:
                 self._idle = IdleWatch("web", transport, idle_timeout)
             super().connection_made(transport)
+            if rates is not None:
+                self._rate_key = client_key(str(self.client[0])) if self.client else OVERFLOW_KEY
 
         _requests = 0
         _spent = False
+        _rate_key = ""
 
         def data_received(self, data: bytes) -> None:
             if self._idle is not None:
                 self._idle.touch()
-            if budget is None:
+            if budget is None and rates is None:
                 super().data_received(data)
                 return
             for i in range(0, len(data), HTTP_FEED_SLICE):
@@ -255,14 +300,39 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
                 return
             self._requests += 1
             before = self.cycle
+            if rates is not None and (wait := rates.take(self._rate_key)):
+                self._refuse(rates, wait, before)
+                return
             super().on_headers_complete()
             if budget is not None and self._requests >= budget:
                 self._spent = True
                 if self.cycle is not before:
                     self.cycle.keep_alive = False  # answered with Connection: close, then closed
 
+        def _refuse(self, limiter: RequestRate, wait: float, before: Any) -> None:
+            """Over the client's rate: a short 429 instead of the app, in order after the answers
+            before it; then the connection closes and the rest is dropped, as for a spent budget."""
+            self._spent = True
+            now = self.loop.time()
+            if now - refusal_logged[0] >= REFUSAL_LOG_INTERVAL:  # one line per interval, not per 429
+                refusal_logged[0] = now
+                log.warning("web: %s over the request rate limit (%d requests refused so far)",
+                            self._rate_key, limiter.refused)
+            app = self.app
+            self.app = too_many_requests(limiter, wait)
+            try:
+                super().on_headers_complete()
+            finally:
+                self.app = app
+            if self.cycle is not before:
+                self.cycle.keep_alive = False
+
         def _should_upgrade(self) -> bool:
             return not self._spent and bool(super()._should_upgrade())
+
+        def _unsupported_upgrade_warning(self) -> None:
+            if not self._spent:  # a refused or dropped WebSocket upgrade is not worth a warning
+                super()._unsupported_upgrade_warning()
 
         def connection_lost(self, exc: Exception | None) -> None:
             if self._idle is not None:

@@ -46,6 +46,11 @@ log = logging.getLogger(__name__)
 
 STATIC = Path(__file__).resolve().parent / "static"
 
+REQUEST_RATE = 20.0
+"""Default per-client request rate limit (requests/s on average; docs/web.md "Request rate limit")."""
+REQUEST_BURST = 200
+"""Default burst: requests a client may make at once before the rate applies."""
+
 # Every router of the web interface, in the order they are included. A new part of the interface
 # is a module with ``router(ctx) -> APIRouter`` and one line here.
 ROUTERS: list[Callable[[WebContext], APIRouter]] = [
@@ -171,7 +176,8 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
                     sim_info: Any = None, settings_path: str | Path | None = None,
                     ssl_certfile: str | None = None, ssl_keyfile: str | None = None,
                     allowed_hosts: Sequence[str] = (), max_connections: int = 64,
-                    idle_timeout: float | None = None, requests_per_connection: int | None = 100) -> WebHandle:
+                    idle_timeout: float | None = None, requests_per_connection: int | None = 100,
+                    request_rate: float | None = REQUEST_RATE, request_burst: int = REQUEST_BURST) -> WebHandle:
     """Start the web interface on the running loop; port 0 picks a free port (``handle.port``).
 
     Bound to a non-loopback address without a ``password``, one is generated and printed once to
@@ -184,7 +190,9 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     ``max_connections``: open HTTP/WebSocket connections at a time; more are refused; one without data
     either way for ``idle_timeout`` s is closed (None: never). ``requests_per_connection``: the
     keep-alive budget; the last allowed request is answered with ``Connection: close`` and what was
-    pipelined after it is dropped (None: no limit).
+    pipelined after it is dropped (None: no limit). ``request_rate`` (requests/s, None: no limit) and
+    ``request_burst``: the per-client rate limit (a token bucket per client address); a request over
+    it is answered ``429 Too Many Requests`` with ``Retry-After`` before the app sees it.
     """
     loopback = is_loopback_host(host)
     if not loopback and password is None:
@@ -195,6 +203,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
                      settings_path=settings_path, host=host, allowed_hosts=allowed_hosts)
     from ..server.conncap import capped_http_protocol
+    from ..server.ratelimit import RequestRate
 
     sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
     real_port = int(sock.getsockname()[1])
@@ -202,7 +211,8 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
         ws_ping_interval=None, server_header=False, http=capped_http_protocol(
-            max_connections, idle_timeout, requests_per_connection),
+            max_connections, idle_timeout, requests_per_connection,
+            RequestRate(request_rate, request_burst) if request_rate else None),
     )
     server = _Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")

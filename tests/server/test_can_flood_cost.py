@@ -1,0 +1,87 @@
+"""Issue 23 item 15: what a flood of CAN frames costs the sim (python-can ``virtual`` bus, the sim on
+its own loop thread, the flooding client in this process: a virtual bus does not cross processes).
+
+Each 8-byte CAN frame holding a frame with a bad CRC is answered E_CHECKSUM_ERROR (000 §2.3): a
+10-byte reply, two CAN frames. Before, the sim woke its loop and fed the gripper once per CAN frame and
+built two new ``can.Message`` per reply, which python-can's virtual bus then deep-copied the slow way:
+the sim's loop spent ~1.9x what python-can alone spends sending those reply frames. The bound is that
+ratio, measured in the same test (CPU time of the threads that do the work, never seconds)."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from pywsg.protocol import Frame, FrameParser, Status
+
+from ..simthread import SimThread
+
+N = 16384  # CAN frames per flood (128 KiB)
+MARKER = Frame(0x06, b"marker!").encode()
+
+
+def _flood(st: SimThread, can: Any, channel: str, unit: bytes) -> tuple[float, list[Frame]]:
+    """The sim's loop-thread CPU (s) to take ``N`` CAN frames of ``unit`` then a marker request, and
+    the replies (read by another thread of this process as they come)."""
+    bus = can.Bus(interface="virtual", channel=channel)
+    try:
+        msgs = [can.Message(arbitration_id=0x01, data=unit, is_extended_id=False) for _ in range(N)]
+        msgs += [can.Message(arbitration_id=0x01, data=MARKER[i : i + 8], is_extended_id=False)
+                 for i in range(0, len(MARKER), 8)]
+        want = Frame.reply(0x06, Status.E_SUCCESS, b"marker!").encode()
+        got = bytearray()
+
+        def read() -> None:
+            while (msg := bus.recv(10)) is not None:
+                got.extend(msg.data)
+                if got.endswith(want):
+                    return
+
+        reader = threading.Thread(target=read, daemon=True)
+        cpu0 = st.call(time.thread_time)
+        reader.start()
+        for msg in msgs:
+            bus.send(msg)
+        reader.join(60)
+        cpu = st.call(time.thread_time) - cpu0
+    finally:
+        bus.shutdown()
+    return cpu, [e for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame)]
+
+
+def _python_can_send(can: Any, channel: str, frames: int) -> float:
+    """CPU (s) python-can alone takes to send ``frames`` new 8-byte messages on a virtual bus with one
+    receiver: the least a reply frame costs a python-can program."""
+    tx, rx = can.Bus(interface="virtual", channel=channel), can.Bus(interface="virtual", channel=channel)
+    try:
+        data = bytes(8)
+        t0 = time.thread_time()
+        for _ in range(frames):
+            tx.send(can.Message(arbitration_id=0x02, data=data, is_extended_id=False))
+        return time.thread_time() - t0
+    finally:
+        tx.shutdown()
+        rx.shutdown()
+
+
+def test_can_bad_crc_flood_costs_less_than_python_can_sending_the_replies(
+        sim_factory: Callable[..., SimThread]) -> None:
+    can = pytest.importorskip("can")
+    channel = f"wsg-{uuid.uuid4().hex[:8]}"
+    st = sim_factory(tcp_port=None, udp_port=None, can_channel=channel)
+    bad = Frame(0x06).encode()[:-2] + b"\0\0"  # 8 bytes: one CAN frame
+    assert len(bad) == 8
+    _flood(st, can, channel, Frame(0x06).encode())  # warm-up
+    runs = [_flood(st, can, channel, bad) for _ in range(2)]
+    cost = min(cpu for cpu, _ in runs)
+    for _, replies in runs:  # every bad frame answered, in order, then the marker
+        assert len(replies) == N + 1
+        assert all(r.command_id == 0x06 and r.status == Status.E_CHECKSUM_ERROR for r in replies[:N])
+        assert replies[-1].payload.endswith(b"marker!")
+    base = min(_python_can_send(can, f"{channel}-base", 2 * N) for _ in range(2))  # 2 reply frames each
+    assert cost < 1.3 * base, (cost, base)  # before: ~1.9x
