@@ -92,7 +92,7 @@ def test_a_burst_of_mixed_can_frames_is_answered_in_order(sim_factory: Callable[
     bad frames and frames on another identifier between them still give every answer, in order."""
     can = pytest.importorskip("can")
     channel = f"wsg-{uuid.uuid4().hex[:8]}"
-    st = sim_factory(tcp_port=None, udp_port=None, can_channel=channel)
+    sim_factory(tcp_port=None, udp_port=None, can_channel=channel)
     bus = can.Bus(interface="virtual", channel=channel)
     try:
         expected: list[tuple[int, bytes]] = []
