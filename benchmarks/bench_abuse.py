@@ -17,6 +17,11 @@ the reply loop of ``wsg sim --count 2`` (datagrams exchanged in 1 s after one 50
 ``--udp-reply-port 0`` (one datagram whose forged source is the sim's own port; forging it needs root:
 skipped otherwise).
 
+The serial rows (random bytes, bad-CRC frames, valid Loop requests) write to the pty of a
+``wsg sim --serial pty`` (whole-process CPU, as above). The CAN rows run ``abuse_can.py`` in a child
+process: python-can's ``virtual`` bus works only within one process, so there the sim is a thread
+and its loop thread's CPU is measured (see that script).
+
 Then the other interfaces, against one ``wsg sim --host 0.0.0.0`` with Modbus/TCP and the web
 interface (so the web rules for a non-loopback bind apply; the password is read from its stderr), run
 with ``ulimit -n 1024``: 1,100 idle connections each to the Modbus/TCP and web ports (connections the
@@ -39,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import os
 import re
 import resource
@@ -83,20 +89,24 @@ def peak(pid: int) -> int:
 class Sim:
     """A `wsg sim` subprocess on fixed ports."""
 
-    def __init__(self, count: int = 1, reply_port: int | None = None) -> None:
+    def __init__(self, count: int = 1, reply_port: int | None = None, serial: bool = False) -> None:
         self.base = free_base(2 * count + 1)
         self.tcp = self.base
         self.udp = self.base + count
         reply = 0 if reply_port is None else reply_port
         args = ["sim", "--tcp-port", str(self.tcp), "--udp-port", str(self.udp), "--udp-reply-port",
-                str(reply if reply_port is not None else 0), "--serial", "off", "--web-port", "0",
-                "--count", str(count), "--no-uvloop"]
+                str(reply if reply_port is not None else 0), "--serial", "pty" if serial else "off",
+                "--web-port", "0", "--count", str(count), "--no-uvloop"]
         self.proc = subprocess.Popen([*SIM, *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                      text=True, env=SIM_ENV)
         assert self.proc.stdout is not None
-        for _ in range(2 * count):
-            if not self.proc.stdout.readline():
+        self.serial = ""  # the pty's path (serial=True)
+        for _ in range(2 * count + serial):
+            line = self.proc.stdout.readline()
+            if not line:
                 raise RuntimeError("wsg sim did not start")
+            if "serial://" in line:
+                self.serial = line.split("serial://", 1)[1].split("?")[0]
         self.ps = psutil.Process(self.proc.pid)
 
     def cpu(self) -> float:
@@ -192,6 +202,35 @@ def tcp_attack(sim: Sim, blob: bytes, second: bool = False) -> int:
     return sum(1 for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame))
 
 
+def serial_attack(sim: Sim, blob: bytes) -> int:
+    """Write ``blob``, padding and a marker to the sim's pty (raw mode) while another thread reads the
+    answers, until the marker's. Returns frames received."""
+    import tty
+
+    fd = os.open(sim.serial, os.O_RDWR | os.O_NOCTTY)
+    tty.setraw(fd)
+    want = Frame.reply(0x06, Status.E_SUCCESS, b"marker!").encode()
+    got = bytearray()
+    done = threading.Event()
+
+    def read() -> None:
+        while not done.is_set() and select.select([fd], [], [], 30)[0]:
+            got.extend(os.read(fd, 1 << 16))
+            if got.endswith(want):
+                done.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    view = memoryview(blob + b"\x00" * 2100 + Frame(0x06, b"marker!").encode())
+    while view:
+        view = view[os.write(fd, view[:4096]):]
+    if not done.wait(120):
+        raise RuntimeError("the marker was never answered on the serial line")
+    reader.join(5)
+    os.close(fd)
+    return sum(1 for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame))
+
+
 def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
     """Send ``datagrams``, each followed by a Loop probe whose answer is awaited (resent each second),
     so that none is dropped unread by a full socket buffer. Returns the answers other than the probes'."""
@@ -216,10 +255,10 @@ def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
     return got
 
 
-def measure(name: str, sent: int, attack: Callable[[Sim], int]) -> None:
+def measure(name: str, sent: int, attack: Callable[[Sim], int], serial: bool = False) -> None:
     """Two runs on fresh sims: CPU and RSS alone (the other client's own load would count), then
     the other client's waits while the attack runs."""
-    sim = Sim()
+    sim = Sim(serial=serial)
     try:
         time.sleep(0.2)
         cpu0, rss0 = sim.cpu(), sim.rss()
@@ -227,7 +266,7 @@ def measure(name: str, sent: int, attack: Callable[[Sim], int]) -> None:
         cpu, rss = sim.cpu() - cpu0, sim.rss() - rss0
     finally:
         sim.close()
-    sim = Sim()
+    sim = Sim(serial=serial)
     try:
         waiter = Waiter(sim.udp)
         waiter.start()
@@ -749,6 +788,7 @@ def proxy_cases(size: int, only: list[str]) -> None:
         ("proxy: random bytes (baseline)", os.urandom(size), False),
         ("proxy: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), False),
         ("proxy: valid 50h requests", repeat(Frame(0x50).encode(), size), False),
+        ("proxy: valid Loop requests (06h, 1 byte)", repeat(Frame(0x06, b"x").encode(), size), False),
         ("proxy --pcap: 70,000 zero bytes then 06h", b"\0" * 70_000 + Frame(0x06, b"x").encode(), True),
         ("proxy --pcap: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), True),
     ]
@@ -787,12 +827,21 @@ def main() -> None:
          lambda s: udp_attack(s, [udp_blob] * n_dgrams)),
         ("UDP: 50 requests in one datagram (x100)", 100 * len(many), lambda s: udp_attack(s, [many] * 100)),
     ]
+    serial_rows = [
+        ("serial (pty): random bytes (baseline)", os.urandom(size)),
+        ("serial (pty): complete frames with bad CRCs", repeat(Frame(0x06, b"x").encode()[:-2] + b"\0\0", size)),
+        ("serial (pty): valid Loop requests", repeat(Frame(0x06, b"x").encode(), size)),
+    ]
+    attacks += [(name, size, functools.partial(serial_attack, blob=blob)) for name, blob in serial_rows]
     only = [o for o in args.only.split(",") if o]
     print(f"{'attack':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s} {'RSS MB':>7s} "
           f"{'answers':>9s}")
     for name, sent, attack in attacks:
         if not only or any(o in name for o in only):
-            measure(name, sent, attack)
+            measure(name, sent, attack, serial=name.startswith("serial"))
+    if not only or any(o in "CAN (virtual bus)" for o in only):  # in-process: a child of its own
+        subprocess.run([PY, os.path.join(os.path.dirname(os.path.abspath(__file__)), "abuse_can.py"),
+                        "--mib", str(args.mib)], env=SIM_ENV, check=False)
     if not only or any(o in "reply loop" for o in only):
         reply_loop()
     if not only or any(o in "self-loop" for o in only):

@@ -20,7 +20,7 @@ from pywsg.protocol import (
     parse_datagram,
 )
 from pywsg.protocol.catalog import request_max_payload
-from pywsg.protocol.parser import ERROR_CREDIT_BURST, ERROR_EVENT_COST
+from pywsg.protocol.parser import ERROR_CREDIT_BURST, ERROR_EVENT_COST, Tally
 
 HOMING_OK = bytes.fromhex("AAAAAA2002000000B3FD")
 
@@ -225,3 +225,63 @@ def test_datagram_answers_its_first_frame_only(monkeypatch: pytest.MonkeyPatch) 
     events = parse_datagram(FORGED_1K * 10_000)
     assert sum(not isinstance(e, GarbageSkipped | TrailingBytes) for e in events) == 1
     assert counted[0] <= 1100  # one candidate checked
+
+
+def _as_tally(events: list[Frame | ParseError]) -> tuple[dict[int, int], int, int, list[str]]:
+    """(valid frames per ID, bad frames, garbage bytes, other events) of a list of events."""
+    frames: dict[int, int] = {}
+    bad = garbage = 0
+    other = []
+    for e in events:
+        if isinstance(e, Frame):
+            frames[e.command_id] = frames.get(e.command_id, 0) + 1
+        elif isinstance(e, ChecksumMismatch):
+            bad += 1
+        elif isinstance(e, GarbageSkipped):
+            garbage += e.count
+        else:
+            other.append(repr(e))
+    return frames, bad, garbage, other
+
+
+stream_parts = st.one_of(
+    valid_frames.map(lambda f: encode_frame(*f)),
+    valid_frames.map(lambda f: encode_frame(*f)[:-2] + b"\0\0"),  # a bad CRC (or, rarely, a valid one)
+    st.binary(max_size=12),
+    st.sampled_from([b"\xaa", b"\xaa\xaa", b"\xaa\xaa\xaa", b"\xaa\xaa\xaa\x50\xff\xff"]),
+)
+
+
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(stream_parts, st.integers(1, 40)), max_size=8), st.data())
+def test_tally_counts_what_feed_returns(parts, data) -> None:  # type: ignore[no-untyped-def]
+    """`FrameParser.tally` (the proxy's counting path for frames it does not show) gives the same
+    frames, checksum failures and garbage as `feed`, for any chunking and any mix of the two calls on
+    one parser, and leaves the same state."""
+    stream = b"".join(p * n for p, n in parts)
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=8)))
+    chunks = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
+    fed, tallied = FrameParser(), FrameParser()
+    for chunk in chunks:
+        want = _as_tally(fed.feed(chunk))
+        t = tallied.tally(chunk) if data.draw(st.booleans()) else Tally(events=tallied.feed(chunk))
+        frames, bad, garbage, other = _as_tally(t.events)
+        for cid, n in t.frames.items():
+            frames[cid] = frames.get(cid, 0) + n
+        assert (frames, bad + t.bad, garbage + t.garbage, other) == want
+        assert (tallied.pending(), tallied._fail_end, tallied._credit) == (fed.pending(), fed._fail_end, fed._credit)
+
+
+def test_tally_of_a_flood_checks_each_distinct_frame_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """1,024 identical bad frames and 1,024 valid ones: two CRCs (and one for the last, partial-or-not
+    piece), not 2,048."""
+    import pywsg.protocol.parser as parser_mod
+
+    calls = []
+    real = parser_mod.crc16
+    monkeypatch.setattr(parser_mod, "crc16", lambda *a: calls.append(1) or real(*a))
+    bad = Frame(0x50).encode()[:-2] + b"\0\0"
+    t = FrameParser().tally(bad * 1024 + Frame(0x50).encode() * 1024)
+    assert len(calls) <= 3
+    assert (t.bad, dict(t.frames), len(t.events)) == (1024, {0x50: 1023}, 1)
+    assert t.first_bad == next(e for e in FrameParser().feed(bad) if isinstance(e, ChecksumMismatch))

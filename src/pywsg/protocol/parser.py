@@ -22,11 +22,12 @@ byte received and is answered about once per ``ERROR_EVENT_COST`` bytes.
 
 from __future__ import annotations
 
+import collections
 import struct
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from .crc import crc16
+from .crc import PREAMBLE_CRC, crc16
 from .frame import HEADER_SIZE, MAX_PAYLOAD, OVERHEAD, PREAMBLE, Frame
 
 MaxPayload = Callable[[int], int]
@@ -120,6 +121,23 @@ Event = Frame | ParseError
 _SIZE = struct.Struct("<BH")
 
 
+@dataclass(slots=True)
+class Tally:
+    """What :meth:`FrameParser.tally` counted of a feed, instead of one event per frame.
+
+    ``frames``: valid frames per command ID; ``bad``: frames with a wrong checksum (``first_bad`` is
+    the first of them); ``garbage``: bytes outside any frame (a failed frame's bytes after its
+    preamble count here, as :meth:`FrameParser.feed` reports them). ``events``: what came after the
+    counted frames, parsed one frame at a time, in order.
+    """
+
+    frames: collections.Counter[int] = field(default_factory=collections.Counter)
+    bad: int = 0
+    first_bad: ChecksumMismatch | None = None
+    garbage: int = 0
+    events: list[Event] = field(default_factory=list)
+
+
 def whole_frame(data: bytes | bytearray | memoryview, verify_checksum: bool, max_payload: MaxPayload) -> Frame | None:
     """``data`` as one valid frame, or None if it is anything else (then parse it the long way).
 
@@ -182,6 +200,55 @@ class FrameParser:
         if pos:
             del buf[:pos]
         return events
+
+    def tally(self, data: bytes | bytearray | memoryview) -> Tally:
+        """Like :meth:`feed` (the same frames, errors and state afterwards), for a caller that needs
+        only how many frames of each kind ``data`` completed (a tap counting what it does not show).
+
+        A run of whole frames none of which holds a preamble - a flood, and most honest traffic - is
+        split on the preamble and counted in C; each distinct frame is checked once. From the first
+        piece that is anything else (a partial frame, garbage, a preamble inside a frame, a SIZE that
+        does not match) the rest is parsed the usual way and returned as ``Tally.events``.
+        """
+        buf = self._buf
+        whole = bytes(buf) + bytes(data) if buf else bytes(data)
+        if self._fail_end or not whole.startswith(PREAMBLE):
+            return Tally(events=self.feed(data))
+        # pieces[0] is b""; the last piece may be partial, so it always goes the usual way. A piece
+        # between two preambles is one frame exactly when it is ID, SIZE, SIZE payload bytes and the
+        # CRC. It cannot end in AAh (the preamble would have matched a byte earlier), so the usual
+        # scan, resuming after a failed frame, finds the next preamble where the split did.
+        pieces = whole.split(PREAMBLE)
+        end = len(pieces) - 1
+        counts = collections.Counter(pieces[1:end])  # keys in order of first appearance
+        odd = next((p for p in counts if not self._plain(p)), None)
+        if odd is not None:
+            end = pieces.index(odd, 1)
+            counts = collections.Counter(pieces[1:end])
+        out = Tally()
+        verify = self.verify_checksum
+        for piece, n in counts.items():
+            received = piece[-2] | (piece[-1] << 8)
+            expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if verify else received
+            if expected == received:
+                out.frames[piece[0]] += n
+            else:
+                out.bad += n
+                out.garbage += n * (len(piece) + 2)  # a failed frame's bytes after its first one
+                if out.first_bad is None:
+                    out.first_bad = ChecksumMismatch(piece[0], piece[3:-2], received, expected)
+        rest = 3 * (end - 1) + sum(map(len, pieces[1:end]))
+        self._buf = bytearray(whole[rest:])
+        out.events, pos = self._scan(len(data), 0)
+        if pos:
+            del self._buf[:pos]
+        return out
+
+    def _plain(self, piece: bytes) -> bool:
+        """``piece`` (the bytes between two preambles) is exactly one frame's ID, SIZE, payload, CRC."""
+        n = len(piece)
+        return (n >= 5 and piece[0] != 0xAA and n == (piece[1] | (piece[2] << 8)) + 5
+                and n - 5 <= self.max_payload(piece[0]))
 
     def _scan(self, earned: int, stop_after: int) -> tuple[list[Event], int]:
         """Parse ``self._buf``; returns the events and how many bytes were consumed.

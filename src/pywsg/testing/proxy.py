@@ -42,7 +42,7 @@ from ..capture.commlog import CommLog, TxRx
 from ..capture.pcap import PcapWriter
 from ..client.url import parse_url
 from ..protocol import ChecksumMismatch, Frame, FrameParser, GarbageSkipped
-from ..protocol.parser import parse_datagram
+from ..protocol.parser import Tally, parse_datagram
 from ..server.netfault import NetFaults, Shaper
 
 __all__ = ["PcapWriter", "Proxy", "ProxyStats"]
@@ -54,7 +54,11 @@ HIGH_WATER = 64 * 1024
 DECODE_BACKLOG = 1024 * 1024
 """Bytes waiting to be decoded at which reading from that side pauses."""
 DECODE_CHUNK = 8 * 1024
-"""Bytes decoded per turn of the event loop."""
+"""Bytes decoded per turn of the event loop while the log shows no frames (over ``log_rate``): counted
+in bulk (:meth:`~pywsg.protocol.FrameParser.tally`), about 0.1 ms per turn."""
+LOG_CHUNK = 256
+"""Bytes decoded per turn of the event loop while frames are shown: each shown frame is decoded and
+formatted (tens of µs), so a turn stays about a millisecond or two."""
 CLOSE_GRACE_S = 2.0
 """How long the gripper side stays open for replies in flight after its client has gone (s)."""
 UDP_UPSTREAMS = 256
@@ -71,43 +75,60 @@ class ProxyStats:
 
 class _LogGate:
     """At most ``rate`` comm-log entries a second for the whole proxy; what is left out is one line a
-    second per direction (``0``: no limit)."""
+    second per direction (``0``: no limit). ``captured``: a pcapng file gets every byte (the line
+    says so)."""
 
-    def __init__(self, log: CommLog | None, rate: int, stats: ProxyStats) -> None:
+    def __init__(self, log: CommLog | None, rate: int, stats: ProxyStats, captured: bool = False) -> None:
         self.log = log
         self.rate = rate
         self.stats = stats
+        self.captured = captured
         self.window = 0.0
         self.used = 0
         self.skipped: dict[TxRx, collections.Counter[str]] = {"tx": collections.Counter(),
                                                              "rx": collections.Counter()}
 
-    def allow(self, direction: TxRx, what: str) -> bool:
+    def full(self) -> bool:
+        """No entry would be shown now: no log, or this second's ``rate`` is spent."""
         if self.log is None:
-            return False
-        if not self.rate:
             return True
+        if not self.rate:
+            return False
+        self.roll()
+        return self.used >= self.rate
+
+    def roll(self) -> None:
+        """Start a new second once the last one has ended (writing its 'not logged' lines)."""
         now = time.monotonic()
         if now - self.window >= 1.0:
             self.summary()
             self.window, self.used = now, 0
-        if self.used < self.rate:
-            self.used += 1
-            return True
-        self.skipped[direction][what] += 1
-        self.stats.not_logged += 1
-        return False
+
+    def skip(self, direction: TxRx, what: str, n: int = 1) -> None:
+        """``n`` frames of kind ``what`` left out (counted for the next 'not logged' line)."""
+        if self.log is not None and n:
+            self.skipped[direction][what] += n
+            self.stats.not_logged += n
+
+    def allow(self, direction: TxRx, what: str, n: int = 1) -> bool:
+        """One entry may be shown now (it uses one of this second's ``rate``); if not, the ``n`` frames
+        it stands for (of kind ``what``) are counted as left out."""
+        if self.full():
+            self.skip(direction, what, n)
+            return False
+        self.used += 1
+        return True
 
     def summary(self) -> None:
         """Write the 'not logged' lines for the window just ended."""
         if self.log is None:
             return
+        where = "; the pcapng has them" if self.captured else ""
         for direction, counts in self.skipped.items():
             if counts:
                 total = sum(counts.values())
                 top = ", ".join(f"{k} x{n}" for k, n in counts.most_common(4))
-                self.log.note(direction, f"{total} frame(s) not logged (over {self.rate}/s; the pcapng has "
-                                         f"them): {top}")
+                self.log.note(direction, f"{total} frame(s) not logged (over {self.rate}/s{where}): {top}")
                 counts.clear()
 
 
@@ -147,15 +168,23 @@ class _Decoder:
             self.task.add_done_callback(self.proxy._tasks.discard)
 
     async def _run(self) -> None:
+        gate = self.proxy.gate
         try:
             while self.backlog:
                 data, datagram = self.backlog.popleft()
                 if datagram:
                     self._events(parse_datagram(data))
                 else:
-                    for i in range(0, len(data), DECODE_CHUNK):
-                        self._events(self.parser.feed(data[i : i + DECODE_CHUNK]))
-                        if len(data) > DECODE_CHUNK:
+                    i = 0
+                    while i < len(data):
+                        if gate.full():  # nothing is shown: count the frames in bulk
+                            part = data[i : i + DECODE_CHUNK]
+                            self._tally(self.parser.tally(part))
+                        else:
+                            part = data[i : i + LOG_CHUNK]
+                            self._events(self.parser.feed(part))
+                        i += len(part)
+                        if i < len(data):
                             await asyncio.sleep(0)
                 self.waiting -= len(data)
                 if self.held and self.waiting <= DECODE_BACKLOG // 2 and self.hold is not None:
@@ -170,10 +199,24 @@ class _Decoder:
         while self.task is not None:
             await asyncio.sleep(0)
 
-    def _events(self, events: list[Any]) -> None:
-        gate, log, direction = self.proxy.gate, self.proxy.log, self.direction
-        bad = garbage = other = 0
+    def _tally(self, t: Tally) -> None:
+        """Frames counted in bulk (none of them shown), then the events parsed after them."""
+        direction = self.direction
+        if t.frames:
+            self.stats.frames[direction] += sum(t.frames.values())
+            for cid, n in t.frames.items():
+                self.proxy.gate.skip(direction, f"{cid:02X}h", n)
         first = ""
+        if t.first_bad is not None:
+            ev = t.first_bad
+            first = f"first {ev.command_id:02X}h: {ev.received:04X}h, expected {ev.expected:04X}h"
+        self._events(t.events, t.bad, t.garbage, first)
+
+    def _events(self, events: list[Any], bad: int = 0, garbage: int = 0, first: str = "") -> None:
+        """Frames into the log (as the gate allows); stream problems, with ``bad`` checksum failures and
+        ``garbage`` bytes counted before, as one note."""
+        gate, log, direction = self.proxy.gate, self.proxy.log, self.direction
+        other = 0
         for ev in events:
             if isinstance(ev, Frame):
                 self.stats.frames[direction] += 1
@@ -187,7 +230,9 @@ class _Decoder:
             else:
                 other += 1
                 first = first or type(ev).__name__
-        if (bad or garbage or other) and log is not None and gate.allow(direction, "stream problems"):
+        # one note for them all; over the rate, the frames with a wrong checksum are counted as left out
+        if (bad or garbage or other) and log is not None and gate.allow(
+                direction, "wrong checksum" if bad else "stream problems", bad or 1):
             parts = []
             if bad:
                 parts.append(f"{bad} frame(s) with a wrong checksum")
@@ -550,7 +595,7 @@ class Proxy:
         self.listen_host, self.listen_port = listen_host, listen_port
         self.log = log
         self.stats = ProxyStats()
-        self.gate = _LogGate(log, log_rate, self.stats)
+        self.gate = _LogGate(log, log_rate, self.stats, captured=pcap is not None)
         self.udp_idle = udp_idle
         self.server_addr = (socket.gethostbyname(self.host), self.port)
         self.pcap = PcapWriter(pcap) if pcap is not None else None
@@ -611,7 +656,7 @@ class Proxy:
             await asyncio.sleep(min(1.0, self.udp_idle / 4) if self.udp_idle > 0 else 1.0)
             if self.pcap is not None:
                 self.pcap.flush()
-            self.gate.summary()
+            self.gate.roll()
             if self._udp_proto is not None and self.udp_idle > 0:
                 self._udp_proto.reap(self.udp_idle)
 
