@@ -235,9 +235,11 @@ class TooManyRequests:
                 self._built[retry] = built
         return built
 
-    def raw(self, wait: float) -> bytes:
-        """The whole answer as bytes, for a connection with nothing else in flight."""
-        return self._build(wait)[2]
+    def raw(self, wait: float, head: bool = False) -> bytes:
+        """The whole answer as bytes, for a connection with nothing else in flight (``head``: to a
+        HEAD request, without the body)."""
+        _, body, raw = self._build(wait)
+        return raw[:len(raw) - len(body)] if head else raw
 
     def app(self, wait: float) -> Any:
         """The answer as an ASGI app, for uvicorn to send in order after the answers before it."""
@@ -347,7 +349,7 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
                 # nothing in flight (a new connection, as a flood makes them): the pre-built answer,
                 # no request cycle, no task
                 self.cycle = _DROPPED
-                self.transport.write(too_many.raw(wait))
+                self.transport.write(too_many.raw(wait, head=self.parser.get_method() == b"HEAD"))
                 self.transport.close()
                 return
             app = self.app
