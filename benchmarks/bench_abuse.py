@@ -30,7 +30,9 @@ sim kept, whether the command port still answers); a 128 MiB chunked body to /ap
 growth); 1,001 cookieless GETs of /static/style.css while a user is logged in (is the user still
 logged in); pipelined Modbus requests, 3 and 1,000 in one TCP write (answers received); and 1 MiB of
 pipelined HTTP requests on one connection (``GET /api/world`` logged in, 404s, a bad Host header) while a
-TCP client sends Loop requests (answers, sim CPU, RSS growth, the TCP client's wait).
+TCP client sends Loop requests (answers, sim CPU, RSS growth, the TCP client's wait); and 1 MiB of the
+same requests (``GET /api/world`` logged in, 404s) over new connections of 99 requests each (under the
+keep-alive budget), and of one request each (answers by status, sim CPU, the TCP client's wait).
 
     .venv/bin/python benchmarks/bench_abuse.py [--mib 1] [--only NAME,...] [--sim-path DIR]
 
@@ -480,9 +482,10 @@ def body_attack(sim: WebSim, path: str, headers: dict[str, str], total: int, tim
 
 
 def _http(port: int, method: str, path: str, cookie: str = "", body: bytes = b"",
-          ctype: str = "application/x-www-form-urlencoded") -> tuple[int, dict[str, str], bytes]:
-    """One HTTP/1.1 request on a new connection: (status, headers lower-cased, body)."""
-    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+          ctype: str = "application/x-www-form-urlencoded",
+          source: str = "127.0.0.1") -> tuple[int, dict[str, str], bytes]:
+    """One HTTP/1.1 request on a new connection from ``source``: (status, headers lower-cased, body)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=10, source_address=(source, 0)) as s:
         extra = (f"Cookie: {cookie}\r\n" if cookie else "") + \
             (f"Content-Type: {ctype}\r\nContent-Length: {len(body)}\r\n" if method == "POST" else "")
         s.sendall(f"{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n{extra}\r\n"
@@ -501,15 +504,16 @@ def _http(port: int, method: str, path: str, cookie: str = "", body: bytes = b""
     return int(lines[0].split()[1]), headers, rest
 
 
-def _login(sim: WebSim) -> str:
+def _login(sim: WebSim, source: str = "127.0.0.1") -> str:
     """Log in with the sim's password; returns the session cookie (``name=value``)."""
-    _, h, page = _http(sim.web, "GET", "/login")
+    _, h, page = _http(sim.web, "GET", "/login", source=source)
     cookie = h.get("cookie", "")
     m = re.search(rb'name="csrf_token" value="([^"]+)"', page)
     token = m.group(1).decode() if m else ""
     from urllib.parse import urlencode
     status, h2, _ = _http(sim.web, "POST", "/login", cookie,
-                          urlencode({"csrf_token": token, "password": sim.password, "next": "/"}).encode())
+                          urlencode({"csrf_token": token, "password": sim.password, "next": "/"}).encode(),
+                          source=source)
     if status != 303:
         raise RuntimeError(f"login failed: HTTP {status}")
     return h2.get("cookie", cookie)
@@ -525,15 +529,21 @@ def _api_headers(sim: WebSim) -> dict[str, str]:
 
 
 def session_flood(sim: WebSim, n: int = 1001) -> str:
-    cookie = _login(sim)
-    before = _http(sim.web, "GET", "/api/state", cookie)[0]
+    """The user on 127.0.0.2, the flood from 127.0.0.1: another address, as it would be (the
+    per-client rate limit answers most of the flood 429 since pywsg 0.3.0)."""
+    user = "127.0.0.2"
+    cookie = _login(sim, user)
+    before = _http(sim.web, "GET", "/api/state", cookie, source=user)[0]
     t0 = time.perf_counter()
+    flood: dict[int, int] = {}
     for _ in range(n):
-        _http(sim.web, "GET", "/static/style.css")
+        status = _http(sim.web, "GET", "/static/style.css")[0]
+        flood[status] = flood.get(status, 0) + 1
     dt = time.perf_counter() - t0
-    after = _http(sim.web, "GET", "/api/state", cookie)[0]
+    after = _http(sim.web, "GET", "/api/state", cookie, source=user)[0]
+    answers = ", ".join(f"{v} x {k}" for k, v in sorted(flood.items()))
     return (f"GET /api/state with the login cookie: {before} before, {after} after "
-            f"({'still logged in' if after == 200 else 'logged out'}); {n} GETs in {dt:.1f} s")
+            f"({'still logged in' if after == 200 else 'logged out'}); {n} GETs in {dt:.1f} s ({answers})")
 
 
 def modbus_pipelined(sim: WebSim, n: int) -> str:
@@ -587,6 +597,42 @@ def web_pipelined(sim: WebSim, path: str, host: str = "", login: bool = True) ->
             f"other client p50/p99/max {w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
 
 
+def web_many_connections(sim: WebSim, path: str, per_connection: int = 99) -> str:
+    """1 MiB of ``GET path`` (logged in: the web password as a Bearer token for /api/world, the
+    scripts' API, a login cookie otherwise) over new connections of ``per_connection`` pipelined
+    requests each, the last asking to close (under the keep-alive budget of 100), while a TCP client
+    sends Loop requests: answers by status, sim CPU, the other client's wait."""
+    auth = (f"Authorization: Bearer {sim.password}" if path.startswith("/api/world")
+            else f"Cookie: {_login(sim)}")
+    one = f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{sim.web}\r\n{auth}\r\n\r\n".encode()
+    last = one.replace(b"\r\n\r\n", b"\r\nConnection: close\r\n\r\n")
+    total = MIB // len(one)
+    waiter = TcpWaiter(sim.tcp)
+    waiter.start()
+    time.sleep(0.2)
+    statuses: dict[bytes, int] = {}
+    cpu0, t0 = sim.cpu(), time.perf_counter()
+    for i in range(0, total, per_connection):
+        n = min(per_connection, total - i)
+        got = b""
+        with socket.create_connection(("127.0.0.1", sim.web), timeout=60) as s, contextlib.suppress(OSError):
+            s.sendall(one * (n - 1) + last)
+            while chunk := s.recv(65536):
+                got += chunk
+        for code in re.findall(rb"HTTP/1\.1 (\d{3}) ", got):
+            statuses[code] = statuses.get(code, 0) + 1
+    dt = time.perf_counter() - t0
+    cpu = sim.cpu() - cpu0
+    waiter.stop.set()
+    waiter.join(15)
+    w = sorted(waiter.waits) or [0.0]
+    p99 = w[min(len(w) - 1, int(len(w) * 0.99))]
+    answers = ", ".join(f"{v} x {k.decode()}" for k, v in sorted(statuses.items()))
+    return (f"{total} requests on {-(-total // per_connection)} connections: {answers}; {dt:.1f} s, "
+            f"CPU {cpu:.2f} s, other client p50/p99/max "
+            f"{w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
+
+
 def interfaces(only: list[str]) -> None:
     """The Modbus/TCP and web rows: one sim each, so one attack cannot spoil the next."""
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
@@ -606,6 +652,9 @@ def interfaces(only: list[str]) -> None:
         ("web: 1 MiB pipelined GET /api/world", lambda s: web_pipelined(s, "/api/world")),
         ("web: 1 MiB pipelined 404s", lambda s: web_pipelined(s, "/no/such/page")),
         ("web: 1 MiB pipelined, bad Host", lambda s: web_pipelined(s, "/api/world", host="evil.example")),
+        ("web: 1 MiB over connections of 99, GET /api/world", lambda s: web_many_connections(s, "/api/world")),
+        ("web: 1 MiB over connections of 99, 404s", lambda s: web_many_connections(s, "/no/such/page")),
+        ("web: 1 MiB, one request per connection, 404s", lambda s: web_many_connections(s, "/no/such/page", 1)),
     ]
     for name, attack in rows:
         if only and not any(o in name for o in only):
