@@ -17,6 +17,11 @@ the reply loop of ``wsg sim --count 2`` (datagrams exchanged in 1 s after one 50
 ``--udp-reply-port 0`` (one datagram whose forged source is the sim's own port; forging it needs root:
 skipped otherwise).
 
+The serial rows (random bytes, bad-CRC frames, valid Loop requests) write to the pty of a
+``wsg sim --serial pty`` (whole-process CPU, as above). The CAN rows run ``abuse_can.py`` in a child
+process: python-can's ``virtual`` bus works only within one process, so there the sim is a thread
+and its loop thread's CPU is measured (see that script).
+
 Then the other interfaces, against one ``wsg sim --host 0.0.0.0`` with Modbus/TCP and the web
 interface (so the web rules for a non-loopback bind apply; the password is read from its stderr), run
 with ``ulimit -n 1024``: 1,100 idle connections each to the Modbus/TCP and web ports (connections the
@@ -25,7 +30,9 @@ sim kept, whether the command port still answers); a 128 MiB chunked body to /ap
 growth); 1,001 cookieless GETs of /static/style.css while a user is logged in (is the user still
 logged in); pipelined Modbus requests, 3 and 1,000 in one TCP write (answers received); and 1 MiB of
 pipelined HTTP requests on one connection (``GET /api/world`` logged in, 404s, a bad Host header) while a
-TCP client sends Loop requests (answers, sim CPU, RSS growth, the TCP client's wait).
+TCP client sends Loop requests (answers, sim CPU, RSS growth, the TCP client's wait); and 1 MiB of the
+same requests (``GET /api/world`` logged in, 404s) over new connections of 99 requests each (under the
+keep-alive budget), and of one request each (answers by status, sim CPU, the TCP client's wait).
 
     .venv/bin/python benchmarks/bench_abuse.py [--mib 1] [--only NAME,...] [--sim-path DIR]
 
@@ -37,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import os
 import re
 import resource
@@ -81,20 +89,24 @@ def peak(pid: int) -> int:
 class Sim:
     """A `wsg sim` subprocess on fixed ports."""
 
-    def __init__(self, count: int = 1, reply_port: int | None = None) -> None:
+    def __init__(self, count: int = 1, reply_port: int | None = None, serial: bool = False) -> None:
         self.base = free_base(2 * count + 1)
         self.tcp = self.base
         self.udp = self.base + count
         reply = 0 if reply_port is None else reply_port
         args = ["sim", "--tcp-port", str(self.tcp), "--udp-port", str(self.udp), "--udp-reply-port",
-                str(reply if reply_port is not None else 0), "--serial", "off", "--web-port", "0",
-                "--count", str(count), "--no-uvloop"]
+                str(reply if reply_port is not None else 0), "--serial", "pty" if serial else "off",
+                "--web-port", "0", "--count", str(count), "--no-uvloop"]
         self.proc = subprocess.Popen([*SIM, *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                      text=True, env=SIM_ENV)
         assert self.proc.stdout is not None
-        for _ in range(2 * count):
-            if not self.proc.stdout.readline():
+        self.serial = ""  # the pty's path (serial=True)
+        for _ in range(2 * count + serial):
+            line = self.proc.stdout.readline()
+            if not line:
                 raise RuntimeError("wsg sim did not start")
+            if "serial://" in line:
+                self.serial = line.split("serial://", 1)[1].split("?")[0]
         self.ps = psutil.Process(self.proc.pid)
 
     def cpu(self) -> float:
@@ -190,6 +202,35 @@ def tcp_attack(sim: Sim, blob: bytes, second: bool = False) -> int:
     return sum(1 for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame))
 
 
+def serial_attack(sim: Sim, blob: bytes) -> int:
+    """Write ``blob``, padding and a marker to the sim's pty (raw mode) while another thread reads the
+    answers, until the marker's. Returns frames received."""
+    import tty
+
+    fd = os.open(sim.serial, os.O_RDWR | os.O_NOCTTY)
+    tty.setraw(fd)
+    want = Frame.reply(0x06, Status.E_SUCCESS, b"marker!").encode()
+    got = bytearray()
+    done = threading.Event()
+
+    def read() -> None:
+        while not done.is_set() and select.select([fd], [], [], 30)[0]:
+            got.extend(os.read(fd, 1 << 16))
+            if got.endswith(want):
+                done.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    view = memoryview(blob + b"\x00" * 2100 + Frame(0x06, b"marker!").encode())
+    while view:
+        view = view[os.write(fd, view[:4096]):]
+    if not done.wait(120):
+        raise RuntimeError("the marker was never answered on the serial line")
+    reader.join(5)
+    os.close(fd)
+    return sum(1 for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame))
+
+
 def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
     """Send ``datagrams``, each followed by a Loop probe whose answer is awaited (resent each second),
     so that none is dropped unread by a full socket buffer. Returns the answers other than the probes'."""
@@ -214,10 +255,10 @@ def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
     return got
 
 
-def measure(name: str, sent: int, attack: Callable[[Sim], int]) -> None:
+def measure(name: str, sent: int, attack: Callable[[Sim], int], serial: bool = False) -> None:
     """Two runs on fresh sims: CPU and RSS alone (the other client's own load would count), then
     the other client's waits while the attack runs."""
-    sim = Sim()
+    sim = Sim(serial=serial)
     try:
         time.sleep(0.2)
         cpu0, rss0 = sim.cpu(), sim.rss()
@@ -225,7 +266,7 @@ def measure(name: str, sent: int, attack: Callable[[Sim], int]) -> None:
         cpu, rss = sim.cpu() - cpu0, sim.rss() - rss0
     finally:
         sim.close()
-    sim = Sim()
+    sim = Sim(serial=serial)
     try:
         waiter = Waiter(sim.udp)
         waiter.start()
@@ -441,9 +482,10 @@ def body_attack(sim: WebSim, path: str, headers: dict[str, str], total: int, tim
 
 
 def _http(port: int, method: str, path: str, cookie: str = "", body: bytes = b"",
-          ctype: str = "application/x-www-form-urlencoded") -> tuple[int, dict[str, str], bytes]:
-    """One HTTP/1.1 request on a new connection: (status, headers lower-cased, body)."""
-    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+          ctype: str = "application/x-www-form-urlencoded",
+          source: str = "127.0.0.1") -> tuple[int, dict[str, str], bytes]:
+    """One HTTP/1.1 request on a new connection from ``source``: (status, headers lower-cased, body)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=10, source_address=(source, 0)) as s:
         extra = (f"Cookie: {cookie}\r\n" if cookie else "") + \
             (f"Content-Type: {ctype}\r\nContent-Length: {len(body)}\r\n" if method == "POST" else "")
         s.sendall(f"{method} {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n{extra}\r\n"
@@ -462,15 +504,16 @@ def _http(port: int, method: str, path: str, cookie: str = "", body: bytes = b""
     return int(lines[0].split()[1]), headers, rest
 
 
-def _login(sim: WebSim) -> str:
+def _login(sim: WebSim, source: str = "127.0.0.1") -> str:
     """Log in with the sim's password; returns the session cookie (``name=value``)."""
-    _, h, page = _http(sim.web, "GET", "/login")
+    _, h, page = _http(sim.web, "GET", "/login", source=source)
     cookie = h.get("cookie", "")
     m = re.search(rb'name="csrf_token" value="([^"]+)"', page)
     token = m.group(1).decode() if m else ""
     from urllib.parse import urlencode
     status, h2, _ = _http(sim.web, "POST", "/login", cookie,
-                          urlencode({"csrf_token": token, "password": sim.password, "next": "/"}).encode())
+                          urlencode({"csrf_token": token, "password": sim.password, "next": "/"}).encode(),
+                          source=source)
     if status != 303:
         raise RuntimeError(f"login failed: HTTP {status}")
     return h2.get("cookie", cookie)
@@ -486,15 +529,21 @@ def _api_headers(sim: WebSim) -> dict[str, str]:
 
 
 def session_flood(sim: WebSim, n: int = 1001) -> str:
-    cookie = _login(sim)
-    before = _http(sim.web, "GET", "/api/state", cookie)[0]
+    """The user on 127.0.0.2, the flood from 127.0.0.1: another address, as it would be (the
+    per-client rate limit answers most of the flood 429 since pywsg 0.3.0)."""
+    user = "127.0.0.2"
+    cookie = _login(sim, user)
+    before = _http(sim.web, "GET", "/api/state", cookie, source=user)[0]
     t0 = time.perf_counter()
+    flood: dict[int, int] = {}
     for _ in range(n):
-        _http(sim.web, "GET", "/static/style.css")
+        status = _http(sim.web, "GET", "/static/style.css")[0]
+        flood[status] = flood.get(status, 0) + 1
     dt = time.perf_counter() - t0
-    after = _http(sim.web, "GET", "/api/state", cookie)[0]
+    after = _http(sim.web, "GET", "/api/state", cookie, source=user)[0]
+    answers = ", ".join(f"{v} x {k}" for k, v in sorted(flood.items()))
     return (f"GET /api/state with the login cookie: {before} before, {after} after "
-            f"({'still logged in' if after == 200 else 'logged out'}); {n} GETs in {dt:.1f} s")
+            f"({'still logged in' if after == 200 else 'logged out'}); {n} GETs in {dt:.1f} s ({answers})")
 
 
 def modbus_pipelined(sim: WebSim, n: int) -> str:
@@ -548,6 +597,42 @@ def web_pipelined(sim: WebSim, path: str, host: str = "", login: bool = True) ->
             f"other client p50/p99/max {w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
 
 
+def web_many_connections(sim: WebSim, path: str, per_connection: int = 99) -> str:
+    """1 MiB of ``GET path`` (logged in: the web password as a Bearer token for /api/world, the
+    scripts' API, a login cookie otherwise) over new connections of ``per_connection`` pipelined
+    requests each, the last asking to close (under the keep-alive budget of 100), while a TCP client
+    sends Loop requests: answers by status, sim CPU, the other client's wait."""
+    auth = (f"Authorization: Bearer {sim.password}" if path.startswith("/api/world")
+            else f"Cookie: {_login(sim)}")
+    one = f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{sim.web}\r\n{auth}\r\n\r\n".encode()
+    last = one.replace(b"\r\n\r\n", b"\r\nConnection: close\r\n\r\n")
+    total = MIB // len(one)
+    waiter = TcpWaiter(sim.tcp)
+    waiter.start()
+    time.sleep(0.2)
+    statuses: dict[bytes, int] = {}
+    cpu0, t0 = sim.cpu(), time.perf_counter()
+    for i in range(0, total, per_connection):
+        n = min(per_connection, total - i)
+        got = b""
+        with socket.create_connection(("127.0.0.1", sim.web), timeout=60) as s, contextlib.suppress(OSError):
+            s.sendall(one * (n - 1) + last)
+            while chunk := s.recv(65536):
+                got += chunk
+        for code in re.findall(rb"HTTP/1\.1 (\d{3}) ", got):
+            statuses[code] = statuses.get(code, 0) + 1
+    dt = time.perf_counter() - t0
+    cpu = sim.cpu() - cpu0
+    waiter.stop.set()
+    waiter.join(15)
+    w = sorted(waiter.waits) or [0.0]
+    p99 = w[min(len(w) - 1, int(len(w) * 0.99))]
+    answers = ", ".join(f"{v} x {k.decode()}" for k, v in sorted(statuses.items()))
+    return (f"{total} requests on {-(-total // per_connection)} connections: {answers}; {dt:.1f} s, "
+            f"CPU {cpu:.2f} s, other client p50/p99/max "
+            f"{w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
+
+
 def interfaces(only: list[str]) -> None:
     """The Modbus/TCP and web rows: one sim each, so one attack cannot spoil the next."""
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
@@ -567,6 +652,9 @@ def interfaces(only: list[str]) -> None:
         ("web: 1 MiB pipelined GET /api/world", lambda s: web_pipelined(s, "/api/world")),
         ("web: 1 MiB pipelined 404s", lambda s: web_pipelined(s, "/no/such/page")),
         ("web: 1 MiB pipelined, bad Host", lambda s: web_pipelined(s, "/api/world", host="evil.example")),
+        ("web: 1 MiB over connections of 99, GET /api/world", lambda s: web_many_connections(s, "/api/world")),
+        ("web: 1 MiB over connections of 99, 404s", lambda s: web_many_connections(s, "/no/such/page")),
+        ("web: 1 MiB, one request per connection, 404s", lambda s: web_many_connections(s, "/no/such/page", 1)),
     ]
     for name, attack in rows:
         if only and not any(o in name for o in only):
@@ -748,12 +836,21 @@ def main() -> None:
          lambda s: udp_attack(s, [udp_blob] * n_dgrams)),
         ("UDP: 50 requests in one datagram (x100)", 100 * len(many), lambda s: udp_attack(s, [many] * 100)),
     ]
+    serial_rows = [
+        ("serial (pty): random bytes (baseline)", os.urandom(size)),
+        ("serial (pty): complete frames with bad CRCs", repeat(Frame(0x06, b"x").encode()[:-2] + b"\0\0", size)),
+        ("serial (pty): valid Loop requests", repeat(Frame(0x06, b"x").encode(), size)),
+    ]
+    attacks += [(name, size, functools.partial(serial_attack, blob=blob)) for name, blob in serial_rows]
     only = [o for o in args.only.split(",") if o]
     print(f"{'attack':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s} {'RSS MB':>7s} "
           f"{'answers':>9s}")
     for name, sent, attack in attacks:
         if not only or any(o in name for o in only):
-            measure(name, sent, attack)
+            measure(name, sent, attack, serial=name.startswith("serial"))
+    if not only or any(o in "CAN (virtual bus)" for o in only):  # in-process: a child of its own
+        subprocess.run([PY, os.path.join(os.path.dirname(os.path.abspath(__file__)), "abuse_can.py"),
+                        "--mib", str(args.mib)], env=SIM_ENV, check=False)
     if not only or any(o in "reply loop" for o in only):
         reply_loop()
     if not only or any(o in "self-loop" for o in only):

@@ -16,6 +16,9 @@ from typing import Any
 
 import pytest
 
+from pywsg import Gripper
+from pywsg.protocol import SystemFlag
+
 WSG = Path(sys.executable).with_name("wsg")
 
 
@@ -89,6 +92,17 @@ class Sim:
     def wsg(self, *args: str, **kw: Any) -> Result:
         return run_wsg(*args, url=self.url, **kw)
 
+    def flags(self) -> SystemFlag:
+        """The sim's system state flags (40h), read in this process over TCP (announced disconnect)."""
+        with Gripper(self.url, timeout=5.0) as g:
+            return g.system_state()
+
+    def ensure_homed(self) -> None:
+        """Reference the gripper unless it is: tests that move must not rely on an earlier test's homing."""
+        if not self.flags() & SystemFlag.SF_REFERENCED:
+            r = self.wsg("home")
+            assert r.code == 0, r
+
     def stop(self) -> None:
         self.proc.send_signal(signal.SIGINT)
         try:
@@ -99,9 +113,28 @@ class Sim:
 
 
 @pytest.fixture(scope="module")
-def sim() -> Iterator[Sim]:
+def _module_sim() -> Iterator[Sim]:
     s = Sim()
     try:
         yield s
     finally:
         s.stop()
+
+
+@pytest.fixture
+def sim(_module_sim: Sim) -> Iterator[Sim]:
+    """One `wsg sim` per test module, checked after each test: a test that leaves a FAST STOP (or a
+    dead sim) behind fails itself, and the FAST STOP is acknowledged so the next test starts clean."""
+    yield _module_sim
+    assert _module_sim.proc.poll() is None, "the test left the sim dead:\n" + "".join(_module_sim.banner[-20:])
+    if _module_sim.flags() & SystemFlag.SF_FAST_STOP:
+        with Gripper(_module_sim.url, timeout=5.0) as g:
+            g.acknowledge()
+        pytest.fail("the test left the shared sim in FAST STOP (acknowledged now for the next test)")
+
+
+@pytest.fixture
+def homed(sim: Sim) -> Sim:
+    """The module's sim, referenced (homed) before the test."""
+    sim.ensure_homed()
+    return sim

@@ -108,7 +108,8 @@ def test_udp_url(sim: Sim) -> None:
     assert r.code == 0 and r.json()["type"] == "WSG50", r
 
 
-def test_log_and_log_file(sim: Sim, tmp_path: Path) -> None:
+def test_log_and_log_file(homed: Sim, tmp_path: Path) -> None:
+    sim = homed
     logfile = tmp_path / "session.jsonl"
     r = sim.wsg("move", "60", "--speed", "400", "--log", "--log-file", str(logfile))
     assert r.code == 0, r

@@ -54,7 +54,9 @@ def test_send_bad_input_gets_the_spec_status(sim: Sim, args: list[str], status: 
     assert status in r.err
 
 
-def test_send_auto_update_follow_and_json(sim: Sim) -> None:
+def test_send_auto_update_follow_and_json(homed: Sim) -> None:
+    sim = homed
+    assert sim.wsg("move", "50", "--speed", "400").code == 0
     r = sim.wsg("send", "--json", "--follow", "0.3", "get-opening-width", "1", "50u16")
     assert r.code == 0, r
     data = r.json()
@@ -79,7 +81,8 @@ def test_send_no_gripper_exits_3() -> None:
 
 @pytest.mark.realtime
 @pytest.mark.skipif(shutil.which("dumpcap") is None, reason="dumpcap (tshark) not installed")
-def test_decode_a_live_capture(sim: Sim, tmp_path: Path) -> None:
+def test_decode_a_live_capture(homed: Sim, tmp_path: Path) -> None:
+    sim = homed
     cap = tmp_path / "live.pcapng"
     dump = subprocess.Popen(["dumpcap", "-q", "-i", "lo", "-f", f"tcp port {sim.tcp_port}", "-w", str(cap)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)

@@ -131,12 +131,22 @@ def client_for(sim: LiveSim) -> httpx.Client:
 
 
 @pytest.fixture(scope="module")
-def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
+def _module_live_sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
     s = LiveSim(tmp_path_factory.mktemp("websim"))
     try:
         yield s
     finally:
         s.close()
+
+
+@pytest.fixture
+def sim(_module_live_sim: LiveSim) -> Iterator[LiveSim]:
+    """One LiveSim per test module, checked after each test: a test that leaves a FAST STOP behind
+    fails itself, and the FAST STOP is acknowledged so the next test starts clean."""
+    yield _module_live_sim
+    if _module_live_sim.snapshot().fast_stop:
+        _module_live_sim.call(_module_live_sim.gripper.acknowledge_fast_stop)
+        pytest.fail("the test left the shared sim in FAST STOP (acknowledged now for the next test)")
 
 
 @pytest.fixture

@@ -12,6 +12,7 @@ test (99 of the same requests on one connection), never with absolute seconds.
 from __future__ import annotations
 
 import json
+import logging
 import re
 import socket
 import time
@@ -104,7 +105,8 @@ def _head(answer: bytes) -> tuple[int, dict[str, str], bytes]:
     return int(lines[0].split()[1]), headers, body
 
 
-def test_over_the_limit_a_readable_429_then_the_client_may_come_back(tmp_path_factory: Any) -> None:
+def test_over_the_limit_a_readable_429_then_the_client_may_come_back(tmp_path_factory: Any,
+                                                                   caplog: pytest.LogCaptureFixture) -> None:
     """A small limit (1 request/s, bursts of 5) so the refill is quick to see."""
     sim = LiveSim(tmp_path_factory.mktemp("small"), request_rate=1.0, request_burst=5)
     try:
@@ -121,8 +123,25 @@ def test_over_the_limit_a_readable_429_then_the_client_may_come_back(tmp_path_fa
         assert "too many requests" in detail and "1 per second" in detail and "bursts of 5" in detail
         # another client address has its own bucket
         assert _statuses(_connection(port, one, 3, source="127.0.0.2")) == [200] * 3
-        # this one is refused until its bucket refills (Retry-After), then served again
+        # this one is refused until its bucket refills (Retry-After), then served again; a HEAD
+        # request gets the head alone, a WebSocket upgrade the 429 too (no 101, no warning logged)
         assert _statuses(_connection(port, one, 1)) == [429]
+        head = _connection(port, one.replace(b"GET ", b"HEAD "), 1)
+        assert _statuses(head) == [429] and head.endswith(b"\r\n\r\n")
+        upgrade = (f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                   "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n").encode()
+        uvicorn_log = logging.getLogger("uvicorn.error")  # uvicorn's loggers do not propagate to the root
+        uvicorn_log.addHandler(caplog.handler)
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+                s.sendall(upgrade)
+                got = b""
+                while data := s.recv(65536):
+                    got += data
+        finally:
+            uvicorn_log.removeHandler(caplog.handler)
+        assert _statuses(got) == [429]
+        assert "Unsupported upgrade" not in caplog.text
         time.sleep(1.2)
         assert _statuses(_connection(port, one, 1)) == [200]
     finally:

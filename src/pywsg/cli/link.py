@@ -11,15 +11,12 @@ FAST STOP on the gripper (command manual 1.4.2, 3.1.2). Over CAN it uses the dri
 from __future__ import annotations
 
 import contextlib
-import socket
 import time
 from collections import deque
 from types import TracebackType
-from typing import Any
 
 from ..capture.commlog import CommLog
-from ..client._sync.can_transport import CanSyncTransport
-from ..client.url import Endpoint, parse_url
+from ..client import Endpoint, SyncTransport, open_transport, parse_url
 from ..protocol import Command, Frame, FrameParser, Status
 from ..protocol.parser import ChecksumMismatch, Event, ParseError, parse_datagram
 
@@ -38,28 +35,13 @@ class Link:
         self.log = log
         self._parser = FrameParser(verify_checksum=True)
         self._queue: deque[Event] = deque()
-        self._sock: socket.socket | None = None
-        self._serial: Any = None
-        self._can: CanSyncTransport | None = None
-        ep = self.endpoint
         try:
-            if ep.scheme == "tcp":
-                self._sock = socket.create_connection((ep.host, ep.port), timeout=connect_timeout)
-                self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            elif ep.scheme == "udp":
-                family = socket.AF_INET6 if ":" in ep.host else socket.AF_INET
-                self._sock = socket.socket(family, socket.SOCK_DGRAM)
-                self._sock.bind((ep.bind or "", ep.reply_port))
-                if ep.reply_port == 0:  # replies come back to our source port
-                    self._sock.connect((ep.host, ep.port))
-            elif ep.scheme == "can":
-                self._can = CanSyncTransport(ep, timeout=connect_timeout)
-            else:
-                import serial
-
-                self._serial = serial.serial_for_url(ep.path, baudrate=ep.baudrate, timeout=0.05)
+            self._t: SyncTransport | None = open_transport(self.endpoint, connect_timeout)
         except OSError as exc:
-            raise LinkError(exc.errno or 0, f"cannot open {ep}: {exc.strerror or exc}") from None
+            why = exc.strerror or str(exc)
+            if not why.startswith("cannot open"):  # the serial transport's own message names the port
+                why = f"cannot open {self.endpoint}: {why}"
+            raise LinkError(exc.errno or 0, why) from None
 
     # -- sending ---------------------------------------------------------------------------------
     def send_frame(self, frame: Frame) -> bytes:
@@ -70,49 +52,28 @@ class Link:
         if self.log is not None and frame is not None:
             self.log.record("tx", frame)
         try:
-            if self._can is not None:
-                self._can.send(wire)
-            elif self._serial is not None:
-                self._serial.write(wire)
-                self._serial.flush()
-            elif self.endpoint.scheme == "udp":
-                assert self._sock is not None
-                self._sock.sendto(wire, (self.endpoint.host, self.endpoint.port))
-            else:
-                assert self._sock is not None
-                self._sock.sendall(wire)
+            self._transport().send(wire)
         except OSError as exc:
             raise LinkError(exc.errno or 0, f"send to {self.endpoint} failed: {exc}") from None
         return wire
 
     # -- receiving -------------------------------------------------------------------------------
+    def _transport(self) -> SyncTransport:
+        if self._t is None:
+            raise LinkError(0, f"the link to {self.endpoint} is closed")
+        return self._t
+
     def _read(self, timeout: float) -> list[Event]:
-        if self._can is not None:
-            try:
-                data = self._can.recv(timeout)
-            except OSError as exc:
-                raise LinkError(exc.errno or 0, f"receive from {self.endpoint} failed: {exc}") from None
-            return self._parser.feed(data) if data else []
-        if self._serial is not None:
-            deadline = time.monotonic() + timeout
-            while True:
-                data = self._serial.read(4096)
-                if data or time.monotonic() >= deadline:
-                    return self._parser.feed(data) if data else []
-        assert self._sock is not None
-        self._sock.settimeout(max(timeout, 1e-4))
+        t = self._transport()
         try:
-            if self.endpoint.scheme == "udp":
-                data, _addr = self._sock.recvfrom(65536)
-                return parse_datagram(data)
-            data = self._sock.recv(65536)
-        except (TimeoutError, BlockingIOError):
-            return []
+            data = t.recv(timeout)
+        except ConnectionResetError:
+            raise LinkError(0, f"{self.endpoint} closed the connection") from None
         except OSError as exc:
             raise LinkError(exc.errno or 0, f"receive from {self.endpoint} failed: {exc}") from None
         if not data:
-            raise LinkError(0, f"{self.endpoint} closed the connection")
-        return self._parser.feed(data)
+            return []
+        return parse_datagram(data) if t.datagram else self._parser.feed(data)
 
     def next_event(self, timeout: float) -> Frame | ParseError | None:
         """The next received frame or parse problem, or None after ``timeout`` seconds."""
@@ -141,7 +102,7 @@ class Link:
     def close(self, announce: bool = True) -> None:
         """Close; over TCP announce the disconnect first (07h) so the gripper keeps calm."""
         try:
-            if announce and self.endpoint.scheme == "tcp" and self._sock is not None:
+            if announce and self.endpoint.scheme == "tcp" and self._t is not None:
                 with contextlib.suppress(OSError):
                     self.send_frame(Frame(Command.DISCONNECT))
                     deadline = time.monotonic() + 1.0
@@ -150,15 +111,9 @@ class Link:
                         if f is None or (f.command_id == Command.DISCONNECT and f.status != Status.E_CMD_PENDING):
                             break
         finally:
-            if self._sock is not None:
-                self._sock.close()
-                self._sock = None
-            if self._serial is not None:
-                self._serial.close()
-                self._serial = None
-            if self._can is not None:
-                self._can.close()
-                self._can = None
+            if self._t is not None:
+                self._t.close()
+                self._t = None
 
     def __enter__(self) -> Link:
         return self

@@ -209,22 +209,47 @@ _DROPPED = types.SimpleNamespace(response_complete=True, disconnected=True, keep
                                  message_event=types.SimpleNamespace(set=lambda: None))
 
 
-def too_many_requests(rates: RequestRate, wait: float) -> Any:
-    """An ASGI app answering ``429 Too Many Requests`` with ``Retry-After`` and a JSON ``detail``
-    in the web interface's error style; ``wait``: seconds until the client has a token again."""
-    retry = retry_after(wait)
-    body = json.dumps({"detail": (
-        f"too many requests from your address: at most {rates.rate:g} per second on average, "
-        f"bursts of {rates.burst}; try again in {retry} s")}).encode()
-    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
-               (b"retry-after", str(retry).encode()), (b"cache-control", b"no-store"),
-               (b"connection", b"close")]
+class TooManyRequests:
+    """The answer to a request over its client's rate: ``429 Too Many Requests`` with ``Retry-After``
+    (whole seconds) and a JSON ``detail`` in the web interface's error style, built once per
+    ``Retry-After`` value."""
 
-    async def app(scope: Any, receive: Any, send: Any) -> None:
-        await send({"type": "http.response.start", "status": 429, "headers": headers})
-        await send({"type": "http.response.body", "body": body})
+    def __init__(self, rates: RequestRate) -> None:
+        self.rates = rates
+        self._built: dict[int, tuple[list[tuple[bytes, bytes]], bytes, bytes]] = {}
 
-    return app
+    def _build(self, wait: float) -> tuple[list[tuple[bytes, bytes]], bytes, bytes]:
+        retry = retry_after(wait)
+        built = self._built.get(retry)
+        if built is None:
+            body = json.dumps({"detail": (
+                f"too many requests from your address: at most {self.rates.rate:g} per second on average, "
+                f"bursts of {self.rates.burst}; try again in {retry} s")}).encode()
+            headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
+                       (b"retry-after", str(retry).encode()), (b"cache-control", b"no-store"),
+                       (b"connection", b"close")]
+            raw = b"".join([b"HTTP/1.1 429 Too Many Requests\r\n",
+                            *(name + b": " + value + b"\r\n" for name, value in headers), b"\r\n", body])
+            built = (headers, body, raw)
+            if len(self._built) < 64:  # Retry-After values seen: 1 s at any rate of 1/s or more
+                self._built[retry] = built
+        return built
+
+    def raw(self, wait: float, head: bool = False) -> bytes:
+        """The whole answer as bytes, for a connection with nothing else in flight (``head``: to a
+        HEAD request, without the body)."""
+        _, body, raw = self._build(wait)
+        return raw[:len(raw) - len(body)] if head else raw
+
+    def app(self, wait: float) -> Any:
+        """The answer as an ASGI app, for uvicorn to send in order after the answers before it."""
+        headers, body, _ = self._build(wait)
+
+        async def app(scope: Any, receive: Any, send: Any) -> None:
+            await send({"type": "http.response.start", "status": 429, "headers": headers})
+            await send({"type": "http.response.body", "body": body})
+
+        return app
 
 
 def capped_http_protocol(limit: int, idle_timeout: float | None = None,
@@ -242,7 +267,7 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
 
     ``rates`` (None: no limit) is the per-client request rate limit, checked before the app sees the
     request: a request from an address whose bucket is empty is answered ``429 Too Many Requests``
-    (:func:`too_many_requests`, in order after the answers before it) with ``Connection: close``, and
+    (:class:`TooManyRequests`, in order after the answers before it) with ``Connection: close``, and
     the rest of that connection is dropped unparsed like a spent budget. So a client over its rate
     costs one short answer per connection, not a trip through the app per request."""
     from uvicorn.protocols.http.auto import AutoHTTPProtocol
@@ -257,6 +282,7 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
         rates = None
 
     cap = Cap("web", limit, lambda: 0)
+    too_many = TooManyRequests(rates) if rates is not None else None
     refusal_logged = [float("-inf")]  # loop time of the last "over the rate limit" log line
 
     class CappedHTTPProtocol(base):  # type: ignore[misc]
@@ -318,8 +344,16 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
                 refusal_logged[0] = now
                 log.warning("web: %s over the request rate limit (%d requests refused so far)",
                             self._rate_key, limiter.refused)
+            assert too_many is not None
+            if before is None or (before.response_complete and not self.pipeline):
+                # nothing in flight (a new connection, as a flood makes them): the pre-built answer,
+                # no request cycle, no task
+                self.cycle = _DROPPED
+                self.transport.write(too_many.raw(wait, head=self.parser.get_method() == b"HEAD"))
+                self.transport.close()
+                return
             app = self.app
-            self.app = too_many_requests(limiter, wait)
+            self.app = too_many.app(wait)
             try:
                 super().on_headers_complete()
             finally:

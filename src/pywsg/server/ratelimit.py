@@ -43,7 +43,7 @@ def client_key(host: str) -> str:
 class RequestRate:
     """Token buckets per client key: ``rate`` requests per second on average, bursts of ``burst``.
 
-    ``max_clients``: buckets kept (about 100 bytes each); ``clock``: seconds, monotonic.
+    ``max_clients``: buckets kept (about 260 bytes each); ``clock``: seconds, monotonic.
     """
 
     def __init__(self, rate: float, burst: int, max_clients: int = 4096,
