@@ -128,7 +128,7 @@ class Tally:
     ``frames``: valid frames per command ID; ``bad``: frames with a wrong checksum (``first_bad`` is
     the first of them); ``garbage``: bytes outside any frame (a failed frame's bytes after its
     preamble count here, as :meth:`FrameParser.feed` reports them); ``problems``: the other error
-    events, in order. ``events``: the last part of the feed, parsed one frame at a time, in order.
+    events, in order.
     """
 
     frames: collections.Counter[int] = field(default_factory=collections.Counter)
@@ -136,7 +136,6 @@ class Tally:
     first_bad: ChecksumMismatch | None = None
     garbage: int = 0
     problems: list[ParseError] = field(default_factory=list)
-    events: list[Event] = field(default_factory=list)
 
     def add(self, events: list[Event]) -> None:
         """Count ``events`` in."""
@@ -228,14 +227,15 @@ class FrameParser:
         A run of whole frames none of which holds a preamble - a flood, and most honest traffic - is
         split on the preamble and counted in C; each distinct frame is checked once. An odd spot (a
         preamble inside a frame, garbage, a SIZE that does not match) is parsed the usual way up to the
-        next frame boundary, then splitting resumes; the last, maybe partial, frame comes back as
-        ``Tally.events``.
+        next frame boundary, then splitting resumes.
         """
         buf = self._buf
         rest = bytes(buf) + bytes(data) if buf else bytes(data)
-        if self._fail_end or not rest.startswith(PREAMBLE):
-            return Tally(events=self.feed(data))
         out = Tally()
+        if (self._fail_end or not rest.startswith(PREAMBLE)
+                or (not buf and whole_frame(data, self.verify_checksum, self.max_payload) is not None)):
+            out.add(self.feed(data))
+            return out
         earned = len(data)
         budget = TALLY_RESPLIT * len(rest)
         verify = self.verify_checksum
@@ -287,9 +287,10 @@ class FrameParser:
                 if not self._fail_end and self._buf.startswith(PREAMBLE):
                     break
             rest = bytes(self._buf)
-        out.events, pos = self._scan(earned, 0)
+        events, pos = self._scan(earned, 0)
         if pos:
             del self._buf[:pos]
+        out.add(events)
         return out
 
     def _scan(self, earned: int, stop_after: int, keep_credit: bool = False) -> tuple[list[Event], int]:

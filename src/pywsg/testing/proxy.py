@@ -200,7 +200,7 @@ class _Decoder:
             await asyncio.sleep(0)
 
     def _tally(self, t: Tally) -> None:
-        """Frames counted in bulk (none of them shown), then the events parsed after them."""
+        """Frames counted in bulk (none of them shown); stream problems as in :meth:`_events`."""
         direction = self.direction
         if t.frames:
             self.stats.frames[direction] += sum(t.frames.values())
@@ -210,7 +210,7 @@ class _Decoder:
         if t.first_bad is not None:
             ev = t.first_bad
             first = f"first {ev.command_id:02X}h: {ev.received:04X}h, expected {ev.expected:04X}h"
-        self._events(t.events, t.bad, t.garbage, first)
+        self._events(t.problems, t.bad, t.garbage, first)
 
     def _events(self, events: list[Any], bad: int = 0, garbage: int = 0, first: str = "") -> None:
         """Frames into the log (as the gate allows); stream problems, with ``bad`` checksum failures and
