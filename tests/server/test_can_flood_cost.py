@@ -85,3 +85,34 @@ def test_can_bad_crc_flood_costs_less_than_python_can_sending_the_replies(
         assert replies[-1].payload.endswith(b"marker!")
     base = min(_python_can_send(can, f"{channel}-base", 2 * N) for _ in range(2))  # 2 reply frames each
     assert cost < 1.3 * base, (cost, base)  # before: ~1.9x
+
+
+def test_a_burst_of_mixed_can_frames_is_answered_in_order(sim_factory: Callable[..., SimThread]) -> None:
+    """The frames of a burst are fed to the gripper together: requests split over several CAN frames,
+    bad frames and frames on another identifier between them still give every answer, in order."""
+    can = pytest.importorskip("can")
+    channel = f"wsg-{uuid.uuid4().hex[:8]}"
+    sim_factory(tcp_port=None, udp_port=None, can_channel=channel)
+    bus = can.Bus(interface="virtual", channel=channel)
+    try:
+        expected: list[tuple[int, bytes]] = []
+        msgs = []
+        for i in range(600):  # > 512: more than one loop turn
+            payload = i.to_bytes(2, "little") * 10  # 28-byte frame: 4 CAN frames
+            raw = Frame(0x06, payload).encode()
+            for j in range(0, len(raw), 8):
+                msgs.append(can.Message(arbitration_id=0x01, data=raw[j : j + 8], is_extended_id=False))
+                msgs.append(can.Message(arbitration_id=0x05, data=b"\xaa\xaa\xaa", is_extended_id=False))
+            expected.append((Status.E_SUCCESS, payload))
+            msgs.append(can.Message(arbitration_id=0x01, data=Frame(0x06).encode()[:-2] + b"\0\0",
+                                    is_extended_id=False))
+            expected.append((Status.E_CHECKSUM_ERROR, b""))
+        for m in msgs:
+            bus.send(m)
+        got, parser = [], FrameParser()
+        while len(got) < len(expected) and (msg := bus.recv(10)) is not None:
+            assert msg.arbitration_id == 0x02 and len(msg.data) <= 8
+            got += [(f.status, f.payload[2:]) for f in parser.feed(bytes(msg.data)) if isinstance(f, Frame)]
+        assert got == expected
+    finally:
+        bus.shutdown()
