@@ -783,12 +783,21 @@ def proxy_case(name: str, blob: bytes, pcap: bool) -> None:
           f"{rss / 1e6:7.1f} {logged / len(blob):8.1f}x", flush=True)
 
 
+def random_crcs(size: int) -> bytes:
+    """8-byte 50h frames with random checksums (each frame different; a few hold AAh in the CRC)."""
+    head = Frame(0x50).encode()[:-2]
+    rnd = os.urandom(size // 4)
+    return b"".join(head + rnd[i : i + 2] for i in range(0, size // 4, 2))[:size]
+
+
 def proxy_cases(size: int, only: list[str]) -> None:
     cases = [
         ("proxy: random bytes (baseline)", os.urandom(size), False),
         ("proxy: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), False),
         ("proxy: valid 50h requests", repeat(Frame(0x50).encode(), size), False),
         ("proxy: valid Loop requests (06h, 1 byte)", repeat(Frame(0x06, b"x").encode(), size), False),
+        ("proxy: 8-byte frames, random CRCs", random_crcs(size), False),
+        ("proxy: Loop requests holding AA AA AA AA", repeat(Frame(0x06, b"\xaa" * 4).encode(), size), False),
         ("proxy --pcap: 70,000 zero bytes then 06h", b"\0" * 70_000 + Frame(0x06, b"x").encode(), True),
         ("proxy --pcap: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), True),
     ]

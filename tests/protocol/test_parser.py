@@ -268,7 +268,7 @@ def test_tally_counts_what_feed_returns(parts, data) -> None:  # type: ignore[no
         frames, bad, garbage, other = _as_tally(t.events)
         for cid, n in t.frames.items():
             frames[cid] = frames.get(cid, 0) + n
-        assert (frames, bad + t.bad, garbage + t.garbage, other) == want
+        assert (frames, bad + t.bad, garbage + t.garbage, [repr(e) for e in t.problems] + other) == want
         assert (tallied.pending(), tallied._fail_end, tallied._credit) == (fed.pending(), fed._fail_end, fed._credit)
 
 

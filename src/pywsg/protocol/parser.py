@@ -127,15 +127,35 @@ class Tally:
 
     ``frames``: valid frames per command ID; ``bad``: frames with a wrong checksum (``first_bad`` is
     the first of them); ``garbage``: bytes outside any frame (a failed frame's bytes after its
-    preamble count here, as :meth:`FrameParser.feed` reports them). ``events``: what came after the
-    counted frames, parsed one frame at a time, in order.
+    preamble count here, as :meth:`FrameParser.feed` reports them); ``problems``: the other error
+    events, in order. ``events``: the last part of the feed, parsed one frame at a time, in order.
     """
 
     frames: collections.Counter[int] = field(default_factory=collections.Counter)
     bad: int = 0
     first_bad: ChecksumMismatch | None = None
     garbage: int = 0
+    problems: list[ParseError] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
+
+    def add(self, events: list[Event]) -> None:
+        """Count ``events`` in."""
+        for ev in events:
+            if isinstance(ev, Frame):
+                self.frames[ev.command_id] += 1
+            elif isinstance(ev, ChecksumMismatch):
+                self.bad += 1
+                if self.first_bad is None:
+                    self.first_bad = ev
+            elif isinstance(ev, GarbageSkipped):
+                self.garbage += ev.count
+            else:
+                self.problems.append(ev)
+
+
+TALLY_RESPLIT = 4
+""":meth:`FrameParser.tally` splits again after an odd spot while it has split at most this many times
+the bytes it was given; past that (odd spots everywhere), the rest is parsed the usual way."""
 
 
 def whole_frame(data: bytes | bytearray | memoryview, verify_checksum: bool, max_payload: MaxPayload) -> Frame | None:
@@ -206,58 +226,81 @@ class FrameParser:
         only how many frames of each kind ``data`` completed (a tap counting what it does not show).
 
         A run of whole frames none of which holds a preamble - a flood, and most honest traffic - is
-        split on the preamble and counted in C; each distinct frame is checked once. From the first
-        piece that is anything else (a partial frame, garbage, a preamble inside a frame, a SIZE that
-        does not match) the rest is parsed the usual way and returned as ``Tally.events``.
+        split on the preamble and counted in C; each distinct frame is checked once. An odd spot (a
+        preamble inside a frame, garbage, a SIZE that does not match) is parsed the usual way up to the
+        next frame boundary, then splitting resumes; the last, maybe partial, frame comes back as
+        ``Tally.events``.
         """
         buf = self._buf
-        whole = bytes(buf) + bytes(data) if buf else bytes(data)
-        if self._fail_end or not whole.startswith(PREAMBLE):
+        rest = bytes(buf) + bytes(data) if buf else bytes(data)
+        if self._fail_end or not rest.startswith(PREAMBLE):
             return Tally(events=self.feed(data))
-        # pieces[0] is b""; the last piece may be partial, so it always goes the usual way. A piece
-        # between two preambles is one frame exactly when it is ID, SIZE, SIZE payload bytes and the
-        # CRC. It cannot end in AAh (the preamble would have matched a byte earlier), so the usual
-        # scan, resuming after a failed frame, finds the next preamble where the split did.
-        pieces = whole.split(PREAMBLE)
-        end = len(pieces) - 1
-        counts = collections.Counter(pieces[1:end])  # keys in order of first appearance
-        odd = next((p for p in counts if not self._plain(p)), None)
-        if odd is not None:
-            end = pieces.index(odd, 1)
-            counts = collections.Counter(pieces[1:end])
         out = Tally()
+        earned = len(data)
+        budget = TALLY_RESPLIT * len(rest)
         verify = self.verify_checksum
-        for piece, n in counts.items():
-            received = piece[-2] | (piece[-1] << 8)
-            expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if verify else received
-            if expected == received:
-                out.frames[piece[0]] += n
-            else:
-                out.bad += n
-                out.garbage += n * (len(piece) + 2)  # a failed frame's bytes after its first one
-                if out.first_bad is None:
-                    out.first_bad = ChecksumMismatch(piece[0], piece[3:-2], received, expected)
-        rest = 3 * (end - 1) + sum(map(len, pieces[1:end]))
-        self._buf = bytearray(whole[rest:])
-        out.events, pos = self._scan(len(data), 0)
+        while True:
+            # pieces[0] is b""; the last piece may be partial, so it always goes the usual way. A piece
+            # between two preambles is one frame exactly when it is ID (not AAh), SIZE, SIZE payload
+            # bytes (at most max_payload) and the CRC. It cannot end in AAh (the preamble would have
+            # matched a byte earlier), so the usual scan, resuming after a failed frame, finds the
+            # next preamble where the split did.
+            budget -= len(rest)
+            pieces = rest.split(PREAMBLE)
+            end = last = len(pieces) - 1
+            counts = collections.Counter(pieces[1:last])  # keys in order of first appearance
+            limit = self.max_payload  # _plain, inlined: it runs once per distinct frame
+            odd = next((p for p in counts if not (len(p) >= 5 and p[0] != 0xAA and len(p) == (p[1] | (p[2] << 8)) + 5
+                                                  and len(p) - 5 <= limit(p[0]))), None)
+            if odd is not None:
+                end = pieces.index(odd, 1)
+                counts = collections.Counter(pieces[1:end])
+            for piece, n in counts.items():
+                received = piece[-2] | (piece[-1] << 8)
+                expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if verify else received
+                if expected == received:
+                    out.frames[piece[0]] += n
+                else:
+                    out.bad += n
+                    out.garbage += n * (len(piece) + 2)  # a failed frame's bytes after its first one
+                    if out.first_bad is None:
+                        out.first_bad = ChecksumMismatch(piece[0], piece[3:-2], received, expected)
+            self._buf = bytearray(rest[3 * (end - 1) + sum(map(len, pieces[1:end])) :])
+            if end == last or budget < 0:
+                break
+            # the odd spot, one event at a time, until the rest starts afresh at a preamble
+            while True:
+                if self._fail_end:  # after a failed frame: is the next candidate past its end?
+                    start = self._buf.find(PREAMBLE)
+                    if start >= self._fail_end:
+                        out.garbage += start
+                        del self._buf[:start]
+                        self._fail_end = 0
+                        break
+                events, pos = self._scan(earned, 1, keep_credit=True)
+                earned = 0
+                del self._buf[:pos]
+                out.add(events)
+                if not pos or not self._buf:  # a partial frame waits, or nothing is left
+                    self._credit = min(self._credit, ERROR_CREDIT_BURST)
+                    return out
+                if not self._fail_end and self._buf.startswith(PREAMBLE):
+                    break
+            rest = bytes(self._buf)
+        out.events, pos = self._scan(earned, 0)
         if pos:
             del self._buf[:pos]
         return out
 
-    def _plain(self, piece: bytes) -> bool:
-        """``piece`` (the bytes between two preambles) is exactly one frame's ID, SIZE, payload, CRC."""
-        n = len(piece)
-        return (n >= 5 and piece[0] != 0xAA and n == (piece[1] | (piece[2] << 8)) + 5
-                and n - 5 <= self.max_payload(piece[0]))
-
-    def _scan(self, earned: int, stop_after: int) -> tuple[list[Event], int]:
+    def _scan(self, earned: int, stop_after: int, keep_credit: bool = False) -> tuple[list[Event], int]:
         """Parse ``self._buf``; returns the events and how many bytes were consumed.
 
         ``earned``: error credit the new bytes bring. ``stop_after``: stop after this many frames or
-        error events (0: no limit) - a datagram holds one frame.
+        error events (0: no limit) - a datagram holds one frame. ``keep_credit``: the scan goes on in
+        another call for the same feed (do not cap the credit at the burst yet).
         """
         buf = self._buf
-        credit = min(self._credit, ERROR_CREDIT_BURST) + earned
+        credit = self._credit + earned  # capped at the burst between feeds
         fail_end = self._fail_end
         events: list[Event] = []
         answered = 0
@@ -337,7 +380,7 @@ class FrameParser:
             pos = end
         if skipped:
             events.append(GarbageSkipped(skipped))
-        self._credit = max(0, min(credit, ERROR_CREDIT_BURST))
+        self._credit = max(0, credit if keep_credit else min(credit, ERROR_CREDIT_BURST))
         self._fail_end = max(0, fail_end - pos)
         return events, pos
 
