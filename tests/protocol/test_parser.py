@@ -248,7 +248,9 @@ stream_parts = st.one_of(
     valid_frames.map(lambda f: encode_frame(*f)),
     valid_frames.map(lambda f: encode_frame(*f)[:-2] + b"\0\0"),  # a bad CRC (or, rarely, a valid one)
     st.binary(max_size=12),
-    st.sampled_from([b"\xaa", b"\xaa\xaa", b"\xaa\xaa\xaa", b"\xaa\xaa\xaa\x50\xff\xff"]),
+    st.sampled_from([b"\xaa", b"\xaa\xaa", b"\xaa\xaa\xaa", b"\xaa\xaa\xaa\x50\xff\xff", encode_frame(0xAA, b"x")]),
+    valid_frames.map(lambda f: encode_frame(f[0], f[1] + b"\xaa\xaa\xaa" + f[1])),  # a preamble inside
+    valid_frames.map(lambda f: encode_frame(f[0], b"\xaa\xaa\xaa" + f[1])[:-2] + b"\xaa\xaa"),
 )
 
 

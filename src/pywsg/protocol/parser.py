@@ -224,10 +224,12 @@ class FrameParser:
         """Like :meth:`feed` (the same frames, errors and state afterwards), for a caller that needs
         only how many frames of each kind ``data`` completed (a tap counting what it does not show).
 
-        A run of whole frames none of which holds a preamble - a flood, and most honest traffic - is
-        split on the preamble and counted in C; each distinct frame is checked once. An odd spot (a
-        preamble inside a frame, garbage, a SIZE that does not match) is parsed the usual way up to the
-        next frame boundary, then splitting resumes.
+        The bytes are split on the preamble (in C): a run of pieces that are each one whole frame - a
+        flood, and most honest traffic - is counted in C, each distinct frame checked once. From an
+        odd spot on, valid frames (say, with a preamble inside) are taken one by one; anything else
+        (garbage, a failed frame with a preamble inside) is parsed the usual way up to the next
+        frame boundary, then splitting resumes. Splitting again stops after :data:`TALLY_RESPLIT`
+        times the input, so odd spots everywhere cost what :meth:`feed` costs, not more.
         """
         buf = self._buf
         rest = bytes(buf) + bytes(data) if buf else bytes(data)
@@ -238,37 +240,23 @@ class FrameParser:
             return out
         earned = len(data)
         budget = TALLY_RESPLIT * len(rest)
-        verify = self.verify_checksum
+        at = 0  # rest[at:] is still to do; it starts at a preamble, outside any failed frame
         while True:
-            # pieces[0] is b""; the last piece may be partial, so it always goes the usual way. A piece
-            # between two preambles is one frame exactly when it is ID (not AAh), SIZE, SIZE payload
-            # bytes (at most max_payload) and the CRC. It cannot end in AAh (the preamble would have
-            # matched a byte earlier), so the usual scan, resuming after a failed frame, finds the
-            # next preamble where the split did.
-            budget -= len(rest)
-            pieces = rest.split(PREAMBLE)
-            end = last = len(pieces) - 1
-            counts = collections.Counter(pieces[1:last])  # keys in order of first appearance
-            limit = self.max_payload  # _plain, inlined: it runs once per distinct frame
-            odd = next((p for p in counts if not (len(p) >= 5 and p[0] != 0xAA and len(p) == (p[1] | (p[2] << 8)) + 5
-                                                  and len(p) - 5 <= limit(p[0]))), None)
-            if odd is not None:
-                end = pieces.index(odd, 1)
-                counts = collections.Counter(pieces[1:end])
-            for piece, n in counts.items():
-                received = piece[-2] | (piece[-1] << 8)
-                expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if verify else received
-                if expected == received:
-                    out.frames[piece[0]] += n
-                else:
-                    out.bad += n
-                    out.garbage += n * (len(piece) + 2)  # a failed frame's bytes after its first one
-                    if out.first_bad is None:
-                        out.first_bad = ChecksumMismatch(piece[0], piece[3:-2], received, expected)
-            self._buf = bytearray(rest[3 * (end - 1) + sum(map(len, pieces[1:end])) :])
-            if end == last or budget < 0:
+            most = 0  # valid frames to take one by one next (0: all there are)
+            if budget >= 0:
+                budget -= len(rest) - at
+                split_at = at
+                at = self._count_plain(rest, at, out)
+                most = 1 if at > split_at else 0  # odd spots close together: stay one by one
+            # an odd spot (or the last frame): valid frames one by one
+            before = at
+            at = self._count_valid(rest, at, out, most)
+            if at == len(rest) or budget < 0:
                 break
-            # the odd spot, one event at a time, until the rest starts afresh at a preamble
+            if at > before and rest.startswith(PREAMBLE, at):
+                continue
+            # the usual way, one event at a time, until the rest starts afresh at a preamble
+            self._buf = bytearray(rest[at:])
             while True:
                 if self._fail_end:  # after a failed frame: is the next candidate past its end?
                     start = self._buf.find(PREAMBLE)
@@ -286,12 +274,64 @@ class FrameParser:
                     return out
                 if not self._fail_end and self._buf.startswith(PREAMBLE):
                     break
-            rest = bytes(self._buf)
+            rest, at = bytes(self._buf), 0
+        self._buf = bytearray(rest[at:])
         events, pos = self._scan(earned, 0)
         if pos:
             del self._buf[:pos]
         out.add(events)
         return out
+
+    def _count_plain(self, rest: bytes, at: int, out: Tally) -> int:
+        """Count the run of pieces from ``rest[at:]`` (split on the preamble) that are each one whole
+        frame, in C; returns where the run ends (the last piece, maybe partial, is never counted)."""
+        # pieces[0] is b"". A piece between two preambles is one frame exactly when it is ID (not
+        # AAh), SIZE, SIZE payload bytes (at most max_payload) and the CRC. It cannot end in AAh (the
+        # preamble would have matched a byte earlier), so the usual scan, resuming after a failed
+        # frame, finds the next preamble where the split did.
+        pieces = rest[at:].split(PREAMBLE)
+        end = len(pieces) - 1
+        counts = collections.Counter(pieces[1:end])  # keys in order of first appearance
+        limit = self.max_payload
+        odd = next((p for p in counts if not (len(p) >= 5 and p[0] != 0xAA and len(p) == (p[1] | (p[2] << 8)) + 5
+                                              and len(p) - 5 <= limit(p[0]))), None)
+        if odd is not None:
+            end = pieces.index(odd, 1)
+            counts = collections.Counter(pieces[1:end])
+        verify = self.verify_checksum
+        for piece, n in counts.items():
+            received = piece[-2] | (piece[-1] << 8)
+            expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if verify else received
+            if expected == received:
+                out.frames[piece[0]] += n
+            else:
+                out.bad += n
+                out.garbage += n * (len(piece) + 2)  # a failed frame's bytes after its first one
+                if out.first_bad is None:
+                    out.first_bad = ChecksumMismatch(piece[0], piece[3:-2], received, expected)
+        return at + 3 * (end - 1) + sum(map(len, pieces[1:end]))
+
+    def _count_valid(self, rest: bytes, at: int, out: Tally, most: int) -> int:
+        """Count valid frames back to back from ``rest[at:]`` (at most ``most``, 0: no limit), as the
+        usual scan would take them; returns where the first thing that is not one begins."""
+        n = len(rest)
+        limit = self.max_payload
+        verify = self.verify_checksum
+        frames = out.frames
+        seen = 0
+        while rest.startswith(PREAMBLE, at) and at + HEADER_SIZE <= n:
+            command_id, size = _SIZE.unpack_from(rest, at + 3)
+            end = at + size + OVERHEAD
+            if command_id == 0xAA or size > limit(command_id) or end > n:
+                break
+            if verify and crc16(memoryview(rest)[at + 3 : end], PREAMBLE_CRC) != 0:
+                break
+            frames[command_id] += 1
+            at = end
+            seen += 1
+            if seen == most:
+                break
+        return at
 
     def _scan(self, earned: int, stop_after: int, keep_credit: bool = False) -> tuple[list[Event], int]:
         """Parse ``self._buf``; returns the events and how many bytes were consumed.
