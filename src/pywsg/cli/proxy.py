@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import json
 import signal
 import sys
@@ -136,6 +137,9 @@ def proxy(ctx: click.Context, listen: str, target: str, pcap: Path | None, jsonl
             click.echo(f"control {server.url}  (wsg world --sim {server.url} net ...)", err=True)
         for kind, params in net.state().items():
             click.echo(f"network fault: {kind} {params}", err=True)
+        # What start-up made (imports, catalog) lives until exit: freezing it keeps the garbage
+        # collector's full passes from scanning it (20-35 ms each, measured under a flood; < 1 ms frozen)
+        gc.freeze()
         try:
             await stop.wait()
         finally:

@@ -58,7 +58,10 @@ DECODE_CHUNK = 8 * 1024
 in bulk (:meth:`~pywsg.protocol.FrameParser.tally`), about 0.1 ms per turn."""
 LOG_CHUNK = 256
 """Bytes decoded per turn of the event loop while frames are shown: each shown frame is decoded and
-formatted (tens of µs), so a turn stays about a millisecond or two."""
+formatted (tens of µs), so a turn stays about a millisecond. A turn that showed next to nothing
+(stray bytes, long frames) doubles the next one, up to :data:`LOG_CHUNK_MAX`."""
+LOG_CHUNK_MAX = 2048
+"""Bytes decoded per turn at most while frames are shown (at most 256 small frames, ~10 ms)."""
 CLOSE_GRACE_S = 2.0
 """How long the gripper side stays open for replies in flight after its client has gone (s)."""
 UDP_UPSTREAMS = 256
@@ -151,6 +154,7 @@ class _Decoder:
         self.held = False
         self.dropped = 0  # datagrams not decoded: the backlog was full (UDP cannot pause)
         self.task: asyncio.Task[None] | None = None
+        self.step = LOG_CHUNK  # bytes decoded in the next turn while frames are shown
 
     def feed(self, data: bytes, datagram: bool = False) -> None:
         self.stats.bytes[self.direction] += len(data)
@@ -181,8 +185,11 @@ class _Decoder:
                             part = data[i : i + DECODE_CHUNK]
                             self._tally(self.parser.tally(part))
                         else:
-                            part = data[i : i + LOG_CHUNK]
+                            part = data[i : i + self.step]
+                            used = gate.used
                             self._events(self.parser.feed(part))
+                            few = 0 <= gate.used - used <= 2  # (a new second starts at 0: also few)
+                            self.step = min(2 * self.step, LOG_CHUNK_MAX) if few else LOG_CHUNK
                         i += len(part)
                         if i < len(data):
                             await asyncio.sleep(0)
