@@ -80,7 +80,10 @@ def test_time_scale_runs_a_scenario_sooner(tmp_path: Path) -> None:
         while not sim.scenario_runners[0].log and time.monotonic() < deadline:
             time.sleep(0.01)
         assert sim.scenario_runners[0].log, "the scenario event at t=20 s never ran at K=100"
-        assert sim.scenario_runners[0].log[0][0] == pytest.approx(20.0, abs=2.0)
+        # it ran at t >= 20 s of scenario time, never early; how late depends on the machine's load
+        # (1 ms of real delay is 0.1 s of scenario time at K = 100), so no upper bound here: running
+        # within the 10 s of real time above, half the 20 s it takes at K = 1, is what shows the scaling
+        assert sim.scenario_runners[0].log[0][0] >= 20.0 - 1e-6  # float rounding of now - start
 
 
 # -- a cell -----------------------------------------------------------------------------------------
