@@ -53,16 +53,16 @@ def _proxy_cpu(loop: LoopThread, sim: SimThread, blob: bytes) -> tuple[float, Pr
 
 
 def test_a_bad_crc_flood_costs_the_proxy_about_what_honest_traffic_costs(loop: LoopThread) -> None:
-    """Before: 8-byte bad-CRC frames cost the proxy ~0.75 s/MiB (the sim answering them 0.39), 3-5x the
-    same bytes of valid 256-byte Loop requests (different payloads, so each is checked). Now about 0.5x,
-    every frame is still counted, and the log says how many it did not show."""
+    """Before: 8-byte bad-CRC frames cost the proxy ~0.75 s/MiB (the sim answering them 0.39), 3-7x the
+    same bytes of valid 256-byte Loop requests (different payloads, so each is checked). Now 0.4-0.9x
+    (bound 2.5x); every frame is still counted, and the log says how many it did not show."""
     bad = (Frame(0x50).encode()[:-2] + b"\0\0") * (SIZE // 8)
     loops = b"".join(Frame(Command.LOOP, os.urandom(250)).encode() for _ in range(SIZE // 258))
     with SimThread() as sim:
         _proxy_cpu(loop, sim, loops[: 16 * 1024])  # warm-up: imports, first connection
         honest, _, _ = _proxy_cpu(loop, sim, loops)
         flood, proxy, text = _proxy_cpu(loop, sim, bad)
-    assert flood < 2 * honest, (flood, honest)
+    assert flood < 2.5 * honest, (flood, honest)
     assert proxy.stats.frames["rx"] == SIZE // 8 + 1  # one E_CHECKSUM_ERROR answer each, and the marker's
     assert proxy.stats.frames["tx"] == 1
     assert "not logged (over 100/s): wrong checksum x" in text
