@@ -290,3 +290,51 @@ def test_tally_of_a_flood_checks_each_distinct_frame_once(monkeypatch: pytest.Mo
     assert len(calls) <= 3
     assert (t.bad, dict(t.frames)) == (1024, {0x50: 1024})
     assert t.first_bad == next(e for e in FrameParser().feed(bad) if isinstance(e, ChecksumMismatch))
+
+
+class _ScanOnly(FrameParser):
+    """The parser without the split on the preamble: the reference the split must agree with."""
+
+    _split_min = 1 << 62
+
+
+@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(stream_parts, st.integers(1, 40)), max_size=8), st.data())
+@example(parts=[(encode_frame(0x50, b""), 20), (encode_frame(0x50, b"")[:-2] + b"\0\0", 20)], data=None)
+@example(parts=[(encode_frame(0x50, b""), 10), (encode_frame(0x50, b"")[:-2] + b"\0\xaa", 1)], data=None)
+@example(parts=[(encode_frame(0x50, b""), 10), (encode_frame(0x50, b"")[:-2] + b"\0\0", 1), (b"\xaa", 1),
+                (encode_frame(0x50, b""), 1)], data=None)
+def test_split_feed_returns_exactly_what_the_scan_returns(parts, data) -> None:  # type: ignore[no-untyped-def]
+    """000 §2.2 frames, read many at a time: `feed` splits a long read on the preamble (one lookup per
+    frame) and must return the very events - frames, checksum failures, garbage, in order - and leave
+    the very state the byte-by-byte scan does, for any stream, any chunking, with the device's CRC
+    check switched between reads."""
+    stream = b"".join(p * n for p, n in parts)
+    if data is None:
+        chunks, switches = [stream], [False]
+    else:
+        cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=6)))
+        chunks = [stream[a:b] for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True)]
+        switches = [data.draw(st.booleans()) for _ in chunks]
+    split, scan = FrameParser(), _ScanOnly()
+    for chunk, switch in zip(chunks, switches, strict=True):
+        if switch:
+            split.verify_checksum = scan.verify_checksum = not scan.verify_checksum
+        assert split.feed(chunk) == scan.feed(chunk)
+        assert (split.pending(), split._fail_end, split._credit, split.suppressed) == (
+            scan.pending(), scan._fail_end, scan._credit, scan.suppressed)
+
+
+def test_a_pipelined_read_checks_each_distinct_frame_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """512 identical requests in one read (a client pipelining, or a flood) cost one CRC, not 512."""
+    import pywsg.protocol.parser as parser_mod
+
+    calls = []
+    real = parser_mod.crc16
+    monkeypatch.setattr(parser_mod, "crc16", lambda *a: calls.append(1) or real(*a))
+    p = FrameParser()
+    bad = Frame(0x50).encode()[:-2] + b"\0\0"
+    events = p.feed(Frame(0x50).encode() * 256 + bad * 255 + Frame(0x40).encode())
+    assert len(calls) <= 4
+    assert frames_of(events) == [Frame(0x50)] * 256 + [Frame(0x40)]
+    assert sum(isinstance(e, ChecksumMismatch) for e in events) == 255

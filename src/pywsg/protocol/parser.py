@@ -23,6 +23,7 @@ byte received and is answered about once per ``ERROR_EVENT_COST`` bytes.
 from __future__ import annotations
 
 import collections
+import itertools
 import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -152,6 +153,12 @@ class Tally:
                 self.problems.append(ev)
 
 
+SPLIT_MIN_BYTES = 64
+""":meth:`FrameParser.feed` splits a read of at least this many bytes (with nothing buffered) on the
+preamble first: a run of whole frames costs one dict lookup each instead of a scan."""
+_MEMO_SIZE = 256  # distinct pieces a parser remembers (then it forgets them all)
+_MEMO_PIECE_BYTES = 64  # longer pieces are checked every time
+
 TALLY_RESPLIT = 4
 """:meth:`FrameParser.tally` splits again after an odd spot while it has split at most this many times
 the bytes it was given; past that (odd spots everywhere), the rest is parsed the usual way."""
@@ -183,7 +190,10 @@ class FrameParser:
     is taken as garbage before the preamble.
     """
 
-    __slots__ = ("_buf", "_credit", "_fail_end", "max_payload", "suppressed", "verify_checksum")
+    __slots__ = ("_buf", "_credit", "_fail_end", "_memo", "_memo_verify", "max_payload", "suppressed",
+                 "verify_checksum")
+
+    _split_min = SPLIT_MIN_BYTES
 
     def __init__(self, verify_checksum: bool = True, max_payload: MaxPayload | None = None) -> None:
         self._buf = bytearray()
@@ -193,6 +203,8 @@ class FrameParser:
         self._fail_end = 0  # end (in _buf) of the last frame that failed its checksum
         self.suppressed = 0
         """Candidate headers skipped unchecked because the error credit was spent (see module doc)."""
+        self._memo: dict[bytes, tuple[Event, ...]] = {}  # piece after a preamble -> its events
+        self._memo_verify = verify_checksum
 
     @property
     def buffered(self) -> int:
@@ -209,16 +221,89 @@ class FrameParser:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         buf = self._buf
+        events: list[Event] = []
         if not buf:
             # the common case on a socket: nothing buffered and ``data`` is exactly one frame
             whole = whole_frame(data, self.verify_checksum, self.max_payload)
             if whole is not None:
                 return [whole]
+            if len(data) >= self._split_min and not self._fail_end:
+                events, done = self._split_frames(bytes(data))
+                if done == len(data):
+                    self._credit = min(self._credit + done, ERROR_CREDIT_BURST)
+                    return events
+                if done:  # the rest is scanned with the credit this whole feed earned, as without the split
+                    self._credit += done
+                    data = memoryview(data)[done:]
         buf += data
-        events, pos = self._scan(len(data), 0)
+        more, pos = self._scan(len(data), 0)
         if pos:
             del buf[:pos]
-        return events
+        if events:
+            events += more
+            return events
+        return more
+
+    def _split_frames(self, data: bytes) -> tuple[list[Event], int]:
+        """The events of the run of whole frames ``data`` starts with, and the bytes they span.
+
+        A read holding many frames back to back (a client pipelining, a flood) is split on the
+        preamble in C; a piece between two preambles that is one whole frame (ID not AAh, SIZE within
+        the cap, SIZE bytes of payload and the CRC) gives exactly the events :meth:`_scan` would: the
+        frame, or a checksum failure and the garbage it leaves (a piece holds no preamble, so the scan
+        resumes at the next one). Each distinct short piece is checked once (``_memo``). The run leaves
+        its last piece to the scan if that piece failed (the scan may merge its garbage with what
+        follows, or keep a trailing AAh), and ends before an odd spot or a partial frame.
+        """
+        if not data.startswith(PREAMBLE):
+            return [], 0
+        if self._memo_verify != self.verify_checksum:  # the device's CRC check was switched
+            self._memo.clear()
+            self._memo_verify = self.verify_checksum
+        memo = self._memo
+        events: list[Event] = []
+        failed: list[Event] = []  # failures after the last valid frame, not yet in ``events``
+        done = failed_bytes = last_failed = 0
+        pieces = data.split(PREAMBLE)
+        for piece in itertools.islice(pieces, 1, None):
+            evs = memo.get(piece)
+            if evs is None:
+                evs = self._whole_piece(piece)
+                if evs is None:
+                    break
+                if len(piece) <= _MEMO_PIECE_BYTES:
+                    if len(memo) >= _MEMO_SIZE:
+                        memo.clear()
+                    memo[piece] = evs
+            if len(evs) == 1:  # a valid frame
+                if failed:
+                    events += failed
+                    failed = []
+                events.append(evs[0])
+                done += failed_bytes + 3 + len(piece)
+                failed_bytes = 0
+            else:
+                failed += evs
+                failed_bytes += 3 + len(piece)
+                last_failed = 3 + len(piece)
+        if failed:  # all but the last failure: the piece after each began at a preamble
+            events += failed[:-2]
+            done += failed_bytes - last_failed
+        return events, done
+
+    def _whole_piece(self, piece: bytes) -> tuple[Event, ...] | None:
+        """``piece`` (what follows a preamble, up to the next) as one whole frame's events, or None."""
+        n = len(piece)
+        if n < 5 or piece[0] == 0xAA:
+            return None
+        size = piece[1] | (piece[2] << 8)
+        if n != size + 5 or size > self.max_payload(piece[0]):
+            return None
+        received = piece[-2] | (piece[-1] << 8)
+        expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if self.verify_checksum else received
+        if expected == received:
+            return (Frame(piece[0], piece[3:-2]),)
+        return ChecksumMismatch(piece[0], piece[3:-2], received, expected), GarbageSkipped(n + 2)
 
     def tally(self, data: bytes | bytearray | memoryview) -> Tally:
         """Like :meth:`feed` (the same frames, errors and state afterwards), for a caller that needs
