@@ -338,3 +338,23 @@ def test_a_pipelined_read_checks_each_distinct_frame_once(monkeypatch: pytest.Mo
     assert len(calls) <= 4
     assert frames_of(events) == [Frame(0x50)] * 256 + [Frame(0x40)]
     assert sum(isinstance(e, ChecksumMismatch) for e in events) == 255
+
+
+_LOOP = encode_frame(0x06, b"\xaa\xaa\xaa\x01")  # a Loop request whose payload holds a preamble
+_BAD = encode_frame(0x50, b"")[:-2] + b"\0\xaa"  # a failed frame ending in AAh
+
+
+@pytest.mark.parametrize("chunks", [
+    [b"\xaa", encode_frame(0x50, b"") * 20],  # a kept AAh, then a read of frames: 1 garbage byte
+    [b"\xaa\xaa", encode_frame(0x50, b"") * 20],
+    [encode_frame(0x50, b"") * 3 + _LOOP[:7], _LOOP[7:] + encode_frame(0x50, b"") * 20],
+    [encode_frame(0x50, b"") * 10 + _BAD, encode_frame(0x50, b"") * 10],
+    [_BAD * 10, b"\xaa\xaa" + encode_frame(0x50, b"") * 10],
+    [encode_frame(0x50, b"")[:4], encode_frame(0x50, b"")[4:] + encode_frame(0x50, b"") * 20],
+], ids=["aa", "aaaa", "preamble-in-payload-cut", "failed-ends-aa", "failed-then-aa", "header-cut"])
+def test_split_feed_across_reads_returns_what_the_scan_returns(chunks: list[bytes]) -> None:
+    """Reads cut frames anywhere (000 §2.2): what a read leaves buffered joins the next read's split."""
+    split, scan = FrameParser(), _ScanOnly()
+    for chunk in chunks:
+        assert split.feed(chunk) == scan.feed(chunk)
+        assert (split.pending(), split._fail_end, split._credit) == (scan.pending(), scan._fail_end, scan._credit)

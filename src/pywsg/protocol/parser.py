@@ -221,28 +221,33 @@ class FrameParser:
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[Event]:
         buf = self._buf
-        events: list[Event] = []
         if not buf:
             # the common case on a socket: nothing buffered and ``data`` is exactly one frame
             whole = whole_frame(data, self.verify_checksum, self.max_payload)
             if whole is not None:
                 return [whole]
-            if len(data) >= self._split_min and not self._fail_end:
-                events, done = self._split_frames(bytes(data))
-                if done == len(data):
-                    self._credit = min(self._credit + done, ERROR_CREDIT_BURST)
+        if len(buf) + len(data) >= self._split_min and not self._fail_end:
+            # many frames at once (a read cuts them anywhere: the buffered start of one joins the rest)
+            stream = bytes(buf) + bytes(data) if buf else bytes(data)
+            events, done = self._split_frames(stream)
+            if done:
+                if done == len(stream):
+                    buf.clear()
+                    self._credit = min(self._credit + len(data), ERROR_CREDIT_BURST)
                     return events
-                if done:  # the rest is scanned with the credit this whole feed earned, as without the split
-                    self._credit += done
-                    data = memoryview(data)[done:]
+                # the rest is scanned with all the credit this feed earned, as without the split
+                self._credit += len(data)
+                buf[:] = memoryview(stream)[done:]
+                more, pos = self._scan(0, 0)
+                if pos:
+                    del buf[:pos]
+                events += more
+                return events
         buf += data
-        more, pos = self._scan(len(data), 0)
+        events, pos = self._scan(len(data), 0)
         if pos:
             del buf[:pos]
-        if events:
-            events += more
-            return events
-        return more
+        return events
 
     def _split_frames(self, data: bytes) -> tuple[list[Event], int]:
         """The events of the run of whole frames ``data`` starts with, and the bytes they span.
