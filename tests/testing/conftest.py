@@ -26,6 +26,22 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
         return int(s.getsockname()[1])
 
 
+def send_then_marker(port: int, blob: bytes) -> None:
+    """Send ``blob`` to 127.0.0.1:``port``, then 2,100 zero bytes (they end any frame ``blob`` left
+    open) and a Loop request "end"; read the answers until that request's, so everything before it
+    has been handled (a proxy or a sim flooded with ``blob``)."""
+    from pywsg.protocol import Command, Frame, FrameParser
+
+    with socket.create_connection(("127.0.0.1", port), timeout=30) as s:
+        s.sendall(blob + b"\0" * 2100 + Frame(Command.LOOP, b"end").encode())
+        parser, done = FrameParser(), False
+        while not done:
+            chunk = s.recv(1 << 16)
+            assert chunk, "closed before the marker's answer"
+            done = any(isinstance(e, Frame) and e.command_id == Command.LOOP and e.payload.endswith(b"end")
+                       for e in parser.feed(chunk))
+
+
 def wsg(*args: str, timeout: float = 60, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     """Run ``wsg ARGS`` as a user would; returns the finished process (stdout, stderr, returncode)."""
     return subprocess.run([*WSG, *args], capture_output=True, text=True, timeout=timeout, env=ENV, cwd=cwd)

@@ -23,7 +23,7 @@ from pywsg.testing import SimThread
 from pywsg.testing.host import LoopThread
 from pywsg.testing.proxy import DECODE_BACKLOG, HIGH_WATER, UDP_UPSTREAMS, Proxy
 
-from .conftest import free_port
+from .conftest import free_port, send_then_marker
 
 
 @pytest.fixture
@@ -212,13 +212,7 @@ def test_logging_a_flood_costs_a_small_factor_of_the_traffic(loop: LoopThread) -
         bad = (Frame(0x50).encode()[:-2] + b"\0\0") * (256 * 1024 // 8)
         try:
             for blob in (os.urandom(len(bad)), bad):
-                with socket.create_connection(("127.0.0.1", proxy.port_bound), timeout=30) as s:
-                    s.sendall(blob + b"\0" * 2100 + Frame(Command.LOOP, b"end").encode())
-                    parser, done = FrameParser(), False
-                    while not done:
-                        chunk = s.recv(1 << 16)
-                        assert chunk, "closed before the marker's answer"
-                        done = any(isinstance(e, Frame) and e.command_id == Command.LOOP for e in parser.feed(chunk))
+                send_then_marker(proxy.port_bound, blob)
         finally:
             loop.run(proxy.close())
         logged = len(text.getvalue()) + len(jsonl.getvalue())

@@ -10,17 +10,18 @@ from __future__ import annotations
 
 import io
 import os
-import socket
 import time
 from collections.abc import Iterator
 
 import pytest
 
 from pywsg.capture.commlog import CommLog
-from pywsg.protocol import Command, Frame, FrameParser
+from pywsg.protocol import Command, Frame
 from pywsg.testing import SimThread
 from pywsg.testing.host import LoopThread
 from pywsg.testing.proxy import Proxy
+
+from .conftest import send_then_marker
 
 SIZE = 256 * 1024
 
@@ -39,14 +40,7 @@ def _proxy_cpu(loop: LoopThread, sim: SimThread, blob: bytes) -> tuple[float, Pr
     cpu0 = loop.call(time.thread_time)
     proxy = loop.run(Proxy(sim.url, log=CommLog(text=text, jsonl=jsonl), log_rate=100).start())
     try:
-        with socket.create_connection(("127.0.0.1", proxy.port_bound), timeout=30) as s:
-            s.sendall(blob + b"\0" * 2100 + Frame(Command.LOOP, b"end").encode())
-            parser, done = FrameParser(), False
-            while not done:
-                chunk = s.recv(1 << 16)
-                assert chunk, "closed before the marker's answer"
-                done = any(isinstance(e, Frame) and e.command_id == Command.LOOP and e.payload.endswith(b"end")
-                           for e in parser.feed(chunk))
+        send_then_marker(proxy.port_bound, blob)
     finally:
         loop.run(proxy.close(), timeout=30)
     return loop.call(time.thread_time) - cpu0, proxy, text.getvalue()

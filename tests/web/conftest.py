@@ -15,6 +15,7 @@ import os
 import socket
 import struct
 import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future
 from pathlib import Path
@@ -98,6 +99,10 @@ class LiveSim:
 
     def snapshot(self) -> Any:
         return self.call(self.gripper.snapshot)
+
+    def loop_cpu(self) -> float:
+        """CPU seconds of the loop thread (the web interface, the gripper and its servers), so far."""
+        return self.call(time.thread_time)
 
     def close(self) -> None:
         async def stop() -> None:

@@ -63,31 +63,26 @@ def _statuses(answer: bytes) -> list[int]:
     return [int(m) for m in re.findall(rb"HTTP/1\.1 (\d{3}) ", answer)]
 
 
-def _cpu(sim: LiveSim) -> float:
-    """CPU seconds of the loop thread that serves the web interface."""
-    return sim.call(time.thread_time)
-
-
 @pytest.mark.parametrize("path", ["/api/world", "/no/such/page"], ids=["world", "404"])
 def test_one_mebibyte_over_many_connections_costs_about_a_burst(fresh: LiveSim, path: str) -> None:
     port = fresh.web.port
     one = _request(port, path)
     served = 404 if path.startswith("/no/") else 200
     # baseline: 99 of the same requests on one connection, as a script polling honestly might
-    t0, w0 = _cpu(fresh), time.monotonic()
+    t0, w0 = fresh.loop_cpu(), time.monotonic()
     base_statuses = _statuses(_connection(port, one, PER_CONNECTION))
-    base = _cpu(fresh) - t0
+    base = fresh.loop_cpu() - t0
     assert base_statuses == [served] * PER_CONNECTION, "the baseline is within the burst: all answered"
 
     # 1 MiB of the same requests (~20,000), 99 per connection, as fast as the server answers
     total = MIB // len(one)
     counts: Counter[int] = Counter()
-    t0 = _cpu(fresh)
+    t0 = fresh.loop_cpu()
     for i in range(0, total, PER_CONNECTION):
         got = _statuses(_connection(port, one, min(PER_CONNECTION, total - i)))
         assert got, "every connection gets an answer"
         counts.update(got)
-    flood, elapsed = _cpu(fresh) - t0, time.monotonic() - w0
+    flood, elapsed = fresh.loop_cpu() - t0, time.monotonic() - w0
     # unlimited, the megabyte costs ~200 baselines; limited it is ~one baseline of served requests
     # plus a short answer per connection
     assert flood < 5 * base + 0.05, f"1 MiB over many connections cost {flood:.3f} s CPU, 99 requests {base:.3f} s"
