@@ -127,6 +127,11 @@ def record_doc_image(name: str, version: str) -> None:
     DOC_IMAGES_MANIFEST.write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
 
 
+def raw_get(port: int, path: str) -> bytes:
+    """A bare ``GET path`` request to 127.0.0.1:``port``, as bytes to pipeline or flood with."""
+    return f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode()
+
+
 def client_for(sim: LiveSim) -> httpx.Client:
     """An HTTP client with a session cookie and its CSRF token in the default headers."""
     c = httpx.Client(base_url=sim.url, timeout=30.0)  # generous: a loaded machine, not a hang

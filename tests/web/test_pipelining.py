@@ -15,7 +15,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from .conftest import LiveSim
+from .conftest import LiveSim, raw_get
 
 MIB = 1 << 20
 BUDGET = 100  # serve_web's default requests_per_connection
@@ -30,10 +30,6 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
         yield s
     finally:
         s.close()
-
-
-def _request(port: int, path: str) -> bytes:
-    return f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode()
 
 
 def _pipeline(port: int, blob: bytes, timeout: float) -> bytes:
@@ -69,7 +65,7 @@ def _pipeline(port: int, blob: bytes, timeout: float) -> bytes:
 @pytest.mark.parametrize("path", ["/api/world", "/no/such/page"], ids=["world", "404"])
 def test_one_mebibyte_of_pipelined_requests_costs_one_budget(sim: LiveSim, path: str) -> None:
     port = sim.web.port
-    one = _request(port, path)
+    one = raw_get(port, path)
     # baseline: the budget's worth of the same request, pipelined the same way
     t0 = sim.loop_cpu()
     base_answer = _pipeline(port, one * BUDGET, timeout=60.0)
@@ -94,7 +90,7 @@ def test_ordinary_keep_alive_use_is_not_cut(sim: LiveSim) -> None:
     port = sim.web.port
     with socket.create_connection(("127.0.0.1", port), timeout=30.0) as s:
         for _ in range(3):
-            s.sendall(_request(port, "/api/world") * 10)
+            s.sendall(raw_get(port, "/api/world") * 10)
             got = b""
             while got.count(b"HTTP/1.1 200") < 10:
                 data = s.recv(65536)

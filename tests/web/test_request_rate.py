@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 
-from .conftest import LiveSim
+from .conftest import LiveSim, raw_get
 
 MIB = 1 << 20
 REQUEST_RATE, REQUEST_BURST = 20.0, 200  # serve_web's defaults (requests/s, requests)
@@ -37,10 +37,6 @@ def fresh(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
         yield s
     finally:
         s.close()
-
-
-def _request(port: int, path: str) -> bytes:
-    return f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode()
 
 
 def _connection(port: int, one: bytes, n: int, source: str = "127.0.0.1", timeout: float = 30.0) -> bytes:
@@ -66,7 +62,7 @@ def _statuses(answer: bytes) -> list[int]:
 @pytest.mark.parametrize("path", ["/api/world", "/no/such/page"], ids=["world", "404"])
 def test_one_mebibyte_over_many_connections_costs_about_a_burst(fresh: LiveSim, path: str) -> None:
     port = fresh.web.port
-    one = _request(port, path)
+    one = raw_get(port, path)
     served = 404 if path.startswith("/no/") else 200
     # baseline: 99 of the same requests on one connection, as a script polling honestly might
     t0, w0 = fresh.loop_cpu(), time.monotonic()
@@ -106,7 +102,7 @@ def test_over_the_limit_a_readable_429_then_the_client_may_come_back(tmp_path_fa
     sim = LiveSim(tmp_path_factory.mktemp("small"), request_rate=1.0, request_burst=5)
     try:
         port = sim.web.port
-        one = _request(port, "/api/world")
+        one = raw_get(port, "/api/world")
         answer = _connection(port, one, 8)
         assert _statuses(answer) == [200] * 5 + [429], "5 served, the 6th refused, the rest dropped"
         status, headers, body = _head(answer[answer.index(b"HTTP/1.1 429"):])
