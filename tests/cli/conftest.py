@@ -19,6 +19,8 @@ import pytest
 from pywsg import Gripper
 from pywsg.protocol import SystemFlag
 
+from ..ports import free_port
+
 WSG = Path(sys.executable).with_name("wsg")
 
 
@@ -53,12 +55,6 @@ def run_wsg(*args: str, url: str | None = None, input: str | None = None, timeou
 def wsg_exe() -> Path:
     assert WSG.exists(), f"{WSG} missing: pip install -e . in the venv"
     return WSG
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Sim:

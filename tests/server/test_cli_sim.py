@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import signal
 import socket
 import subprocess
@@ -17,27 +16,8 @@ import pytest
 
 from pywsg.protocol import Status
 
+from ..ports import free_base
 from .conftest import TcpClient, UdpClient
-
-
-def free_base(n: int) -> int:
-    """A port p such that p..p+n-1 are free for TCP and UDP on 127.0.0.1."""
-    for _ in range(200):
-        base = random.randint(20000, 40000)
-        socks = []
-        try:
-            for i in range(n):
-                for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
-                    s = socket.socket(socket.AF_INET, kind)
-                    socks.append(s)
-                    s.bind(("127.0.0.1", base + i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no free port range")
 
 
 def start_sim(*args: str, lines: int) -> tuple[subprocess.Popen[str], list[str]]:

@@ -16,8 +16,8 @@ import pytest
 from pywsg.protocol import Frame, Status
 from pywsg.server import Limits
 
+from ..ports import free_base
 from .conftest import SimThread, TcpClient
-from .test_cli_sim import free_base
 
 pytestmark = pytest.mark.pymodbus  # the Modbus/TCP server: also run on the oldest pymodbus (scripts/test.sh)
 
@@ -98,7 +98,8 @@ def test_descriptor_reserve_keeps_the_command_port_accepting_under_a_low_ulimit(
     try:
         assert proc.stdout is not None
         for _ in range(3):
-            assert proc.stdout.readline(), "wsg sim did not start"
+            if not proc.stdout.readline():
+                pytest.fail(f"wsg sim did not start: {proc.stderr.read() if proc.stderr else ''}")
         assert resource.getrlimit(resource.RLIMIT_NOFILE)[0] > 700
         socks = idle(base + 2, 200) + idle(base + 1, 200)
         kept = alive(socks)

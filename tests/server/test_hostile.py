@@ -40,8 +40,8 @@ import pytest
 from pywsg.protocol import Frame, Status
 
 from ..conftest import kill_tree
+from ..ports import free_base
 from .conftest import SimThread, UdpClient, loop_frame
-from .test_cli_sim import free_base
 
 MIB = 1 << 20
 FORGED_1K = b"\xaa\xaa\xaa\x99\x00\x04"  # unknown ID 99h announcing 1 KiB: every one a CRC candidate

@@ -12,7 +12,8 @@ import pytest
 
 from pywsg.device import Settings
 
-from .test_cli_sim import free_base, start_sim, stop
+from ..ports import free_base
+from .test_cli_sim import start_sim, stop
 
 SIM = [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim"]
 OFF = ["--udp-port", "0", "--serial", "off", "--web-port", "0"]

@@ -16,14 +16,10 @@ from pathlib import Path
 
 import pytest
 
+from ..ports import free_port
+
 WSG = [sys.executable, "-c", "from pywsg.cli.main import main; main()"]
 ENV = dict(os.environ, PYTHONUNBUFFERED="1", WSG_NO_ENV="1")
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def send_then_marker(port: int, blob: bytes) -> None:
