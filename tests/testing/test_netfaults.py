@@ -170,6 +170,7 @@ def test_serial_line_garbles_bytes_and_the_driver_reports_it(wsg_sim: SimThread)
         kinds = {type(e).__name__ for e in errors}
         assert kinds <= {"TimeoutError", "BadChecksumReply", "ChecksumError"}, kinds
         wsg_sim.world.net("clear")
+        g.timeout = 10.0  # s: the short timeout was for the garbled line; a clean one answers, however loaded
         g.reconnect()  # forget the ghosts of the timed-out calls (see the silent test)
         assert g.loop(b"clean again") == b"clean again"
 

@@ -146,22 +146,26 @@ def test_garbage_floods_and_malformed_rpc_cost_bounded_cpu_and_break_nothing(wir
 
 
 def test_sim_without_raw_socket_permission_says_so(tmp_path: Path) -> None:
-    """Without root or CAP_NET_RAW the sim names what it needs (run as an unprivileged user)."""
+    """Without root or CAP_NET_RAW the sim names what it needs: run as the unprivileged user 'nobody'
+    where that user can read this checkout, else as root with CAP_NET_RAW and CAP_NET_ADMIN dropped
+    from the bounding set (a clone in a private directory, as `mktemp -d` makes, is closed to nobody)."""
     if sys.platform != "linux":
         pytest.skip("raw sockets are Linux-only here")
     import pwd
 
+    assert shutil.which("setpriv"), "setpriv is missing (util-linux, essential on Debian)"
+    drop = ["setpriv", "--bounding-set=-net_raw,-net_admin", "--inh-caps=-net_raw,-net_admin"]
     try:
         nobody = pwd.getpwnam("nobody")
     except KeyError:
-        pytest.skip("no user 'nobody' to run without privileges")
-    if shutil.which("setpriv") is None:
-        pytest.skip("setpriv (util-linux) is not installed")
-    drop = ["setpriv", f"--reuid={nobody.pw_uid}", f"--regid={nobody.pw_gid}", "--clear-groups", "--inh-caps=-all"]
-    probe = subprocess.run([*drop, sys.executable, "-c", "import pywsg.cli.main"], capture_output=True, text=True,
-                           timeout=60, cwd=tmp_path)
-    if probe.returncode != 0:
-        pytest.skip(f"user 'nobody' cannot run this checkout's Python: {probe.stderr.strip()[-200:]}")
+        nobody = None
+    if nobody is not None:
+        as_nobody = ["setpriv", f"--reuid={nobody.pw_uid}", f"--regid={nobody.pw_gid}", "--clear-groups",
+                     "--inh-caps=-all"]
+        probe = subprocess.run([*as_nobody, sys.executable, "-c", "import pywsg.cli.main"], capture_output=True,
+                               text=True, timeout=60, cwd=tmp_path)
+        if probe.returncode == 0:
+            drop = as_nobody
     r = subprocess.run([*drop, sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim",
                         "--no-uvloop", "--tcp-port", "0", "--udp-port", "0", "--serial", "off", "--web-port", "off",
                         "--profinet", "lo"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
@@ -190,5 +194,9 @@ def test_web_shows_the_profinet_bus_and_sets_the_station_name(wire: Wire, tmp_pa
     fb = wire.http("GET", f"{sim.web_url}/api/fieldbus")
     assert isinstance(fb, dict)
     rows = {b["name"]: {r["label"]: r["text"] for r in b["rows"]} for b in fb["body"]["buses"]}["PROFINET IO"]
-    assert rows["Last AR end"] == "released by the controller" and int(rows["Frames in / out"].split(" / ")[0]) > 10
+    # the controller releases its AR after 0.5 s; on a loaded machine its process may stall past the
+    # data hold time first, and the device ends the AR by its watchdog: the row says which, either way
+    end = rows["Last AR end"]
+    assert end == "released by the controller" or end.startswith("watchdog: no output frame"), rows
+    assert int(rows["Frames in / out"].split(" / ")[0]) > 10
     assert "Traceback" not in sim.stop()
