@@ -30,17 +30,14 @@ from pywsg import AsyncGripper, Gripper
 from pywsg.client import calls
 from pywsg.protocol import Command, encode_frame
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, for tests/
+from tests.ports import free_port  # ports below the ephemeral range, as the tests pick them
+
 REQ = encode_frame(Command.GET_GRIPPER_STATE, b"\x00\x00\x00")
 REPLY_LEN = 6 + 3 + 2  # header, status + state, CRC
 DISCONNECT = encode_frame(Command.DISCONNECT)
 # the raw clients send exactly the bytes the drivers send for gripper_state()
 assert calls.gripper_state().wire == REQ, calls.gripper_state().wire.hex()
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def start_sim(port: int, uvloop: bool) -> subprocess.Popen[bytes]:

@@ -49,6 +49,9 @@ import psutil
 
 from pywsg.protocol import CATALOG, Frame
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # the checkout, for tests/
+from tests.ports import free_base  # ports below the ephemeral range, as the tests pick them
+
 REQ = Frame(0x41, CATALOG[0x41].encode_request(flags=0, period_ms=0)).encode()
 REPLY = Frame.reply(0x41, 0, b"\x00").encode()
 assert len(REQ) == len(REPLY) == 11
@@ -103,27 +106,6 @@ BARE = textwrap.dedent(
         asyncio.run(main())
     """
 )
-
-
-def free_base(n: int) -> int:
-    import random
-
-    for _ in range(500):
-        base = random.randint(20000, 50000)
-        socks = []
-        try:
-            for i in range(n):
-                for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
-                    s = socket.socket(socket.AF_INET, kind)
-                    socks.append(s)
-                    s.bind(("127.0.0.1", base + i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no free port range")
 
 
 def start(cmd: list[str], ready: str) -> subprocess.Popen[str]:

@@ -5,7 +5,6 @@ Run: .venv/bin/python benchmarks/cli_bench.py   (starts its own `wsg sim` on fre
 
 from __future__ import annotations
 
-import socket
 import statistics
 import subprocess
 import sys
@@ -19,6 +18,9 @@ from pywsg.capture.reader import frames_from_capture
 from pywsg.cli.editor import parse_payload
 from pywsg.protocol import Frame, Status
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, for tests/
+from tests.ports import free_port  # ports below the ephemeral range, as the tests pick them
+
 WSG = str(Path(sys.executable).with_name("wsg"))
 
 
@@ -29,12 +31,6 @@ def wall(argv: list[str], n: int = 8) -> float:
         subprocess.run(argv, capture_output=True, check=False)
         times.append(time.perf_counter() - t)
     return statistics.median(times)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def capture_speed(n: int) -> tuple[float, int]:
