@@ -104,6 +104,12 @@ class LiveSim:
         """CPU seconds of the loop thread (the web interface, the gripper and its servers), so far."""
         return self.call(time.thread_time)
 
+    def __enter__(self) -> LiveSim:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def close(self) -> None:
         async def stop() -> None:
             await self.web.close()
@@ -142,11 +148,8 @@ def client_for(sim: LiveSim) -> httpx.Client:
 
 @pytest.fixture(scope="module")
 def _module_live_sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("websim"))
-    try:
+    with LiveSim(tmp_path_factory.mktemp("websim")) as s:
         yield s
-    finally:
-        s.close()
 
 
 @pytest.fixture
@@ -201,11 +204,8 @@ def page(browser: Any) -> Iterator[Any]:
 @pytest.fixture(scope="module")
 def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
     """Bound to 0.0.0.0 with a password: the non-loopback rules (tests use it over 127.0.0.1)."""
-    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD)
-    try:
+    with LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD) as s:
         yield s
-    finally:
-        s.close()
 
 
 def submit_form(page: Any, form: str, **values: str) -> None:

@@ -55,11 +55,8 @@ def pages(browser: Any) -> Iterator[Any]:
 
 @pytest.fixture
 def fresh_sim(tmp_path: Path) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path)
-    try:
+    with LiveSim(tmp_path) as s:
         yield s
-    finally:
-        s.close()
 
 
 def _results(sim: LiveSim) -> list[dict[str, Any]]:

@@ -35,11 +35,8 @@ VIEWPORTS = {"phone": (390, 844), "small-phone": (360, 740), "laptop": (1366, 76
 
 @pytest.fixture
 def fresh_sim(tmp_path: Path) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path)
-    try:
+    with LiveSim(tmp_path) as s:
         yield s
-    finally:
-        s.close()
 
 
 def _page(browser: Any, size: tuple[int, int], errors: list[str]) -> Any:

@@ -123,11 +123,8 @@ def test_unknown_page_is_an_html_page_and_unknown_api_is_json(sim: LiveSim) -> N
 
 @pytest.fixture
 def lockable(tmp_path: Path) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path, host="0.0.0.0", password=PASSWORD)
-    try:
+    with LiveSim(tmp_path, host="0.0.0.0", password=PASSWORD) as s:
         yield s
-    finally:
-        s.close()
 
 
 def test_login_lockout_is_an_html_page(lockable: LiveSim) -> None:

@@ -31,29 +31,20 @@ CHUNK = b"x" * 65536
 # run without it.
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("hardening"), request_rate=None)
-    try:
+    with LiveSim(tmp_path_factory.mktemp("hardening"), request_rate=None) as s:
         yield s
-    finally:
-        s.close()
 
 
 @pytest.fixture(scope="module")
 def remote(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD, request_rate=None)
-    try:
+    with LiveSim(tmp_path_factory.mktemp("remote"), host="0.0.0.0", password=REMOTE_PASSWORD, request_rate=None) as s:
         yield s
-    finally:
-        s.close()
 
 
 @pytest.fixture(scope="module")
 def named(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path_factory.mktemp("named"), allowed_hosts=["gripper.cell4.local"])
-    try:
+    with LiveSim(tmp_path_factory.mktemp("named"), allowed_hosts=["gripper.cell4.local"]) as s:
         yield s
-    finally:
-        s.close()
 
 
 def _send_chunked(port: int, path: str, headers: dict[str, str], total: int) -> tuple[int, bytes]:

@@ -25,11 +25,8 @@ BUDGET = 100  # serve_web's default requests_per_connection
 def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
     """Without the per-client rate limit (tests/web/test_request_rate.py): these floods come from one
     address, and the limit would answer 429 long before the keep-alive budget tested here."""
-    s = LiveSim(tmp_path_factory.mktemp("pipelining"), request_rate=None)
-    try:
+    with LiveSim(tmp_path_factory.mktemp("pipelining"), request_rate=None) as s:
         yield s
-    finally:
-        s.close()
 
 
 def _pipeline(port: int, blob: bytes, timeout: float) -> bytes:

@@ -30,11 +30,8 @@ from .conftest import LiveSim, client_for, read_frame
 
 @pytest.fixture
 def fresh(tmp_path: Path) -> Iterator[LiveSim]:
-    s = LiveSim(tmp_path)  # its own gripper: no other test's tag, soft limits or failures
-    try:
+    with LiveSim(tmp_path) as s:  # its own gripper: no other test's tag, soft limits or failures
         yield s
-    finally:
-        s.close()
 
 
 def _device(sim: LiveSim) -> dict[str, Any]:

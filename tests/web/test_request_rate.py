@@ -32,11 +32,8 @@ PER_CONNECTION = 99  # under the keep-alive budget (100): only the rate limit ca
 @pytest.fixture
 def fresh(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
     """A sim with the default limit and a full bucket for 127.0.0.1."""
-    s = LiveSim(tmp_path_factory.mktemp("rate"))
-    try:
+    with LiveSim(tmp_path_factory.mktemp("rate")) as s:
         yield s
-    finally:
-        s.close()
 
 
 def _connection(port: int, one: bytes, n: int, source: str = "127.0.0.1", timeout: float = 30.0) -> bytes:
