@@ -181,6 +181,13 @@ def whole_frame(data: bytes | bytearray | memoryview, verify_checksum: bool, max
     return None
 
 
+def _is_whole_frame(piece: bytes, max_payload: MaxPayload) -> bool:
+    """``piece`` (what follows a preamble, up to the next) is one whole frame: ID (not AAh), SIZE,
+    SIZE payload bytes (at most ``max_payload(ID)``) and the CRC."""
+    n = len(piece)
+    return n >= 5 and piece[0] != 0xAA and n == (piece[1] | (piece[2] << 8)) + 5 and n - 5 <= max_payload(piece[0])
+
+
 class FrameParser:
     """Stream parser. ``feed(data)`` returns the frames and error events ``data`` completed.
 
@@ -298,17 +305,13 @@ class FrameParser:
 
     def _whole_piece(self, piece: bytes) -> tuple[Event, ...] | None:
         """``piece`` (what follows a preamble, up to the next) as one whole frame's events, or None."""
-        n = len(piece)
-        if n < 5 or piece[0] == 0xAA:
-            return None
-        size = piece[1] | (piece[2] << 8)
-        if n != size + 5 or size > self.max_payload(piece[0]):
+        if not _is_whole_frame(piece, self.max_payload):
             return None
         received = piece[-2] | (piece[-1] << 8)
         expected = crc16(memoryview(piece)[:-2], PREAMBLE_CRC) if self.verify_checksum else received
         if expected == received:
             return (Frame(piece[0], piece[3:-2]),)
-        return ChecksumMismatch(piece[0], piece[3:-2], received, expected), GarbageSkipped(n + 2)
+        return ChecksumMismatch(piece[0], piece[3:-2], received, expected), GarbageSkipped(len(piece) + 2)
 
     def tally(self, data: bytes | bytearray | memoryview) -> Tally:
         """Like :meth:`feed` (the same frames, errors and state afterwards), for a caller that needs
@@ -375,16 +378,13 @@ class FrameParser:
     def _count_plain(self, rest: bytes, at: int, out: Tally) -> int:
         """Count the run of pieces from ``rest[at:]`` (split on the preamble) that are each one whole
         frame, in C; returns where the run ends (the last piece, maybe partial, is never counted)."""
-        # pieces[0] is b"". A piece between two preambles is one frame exactly when it is ID (not
-        # AAh), SIZE, SIZE payload bytes (at most max_payload) and the CRC. It cannot end in AAh (the
-        # preamble would have matched a byte earlier), so the usual scan, resuming after a failed
-        # frame, finds the next preamble where the split did.
+        # pieces[0] is b"". A piece cannot end in AAh (the preamble would have matched a byte earlier),
+        # so the usual scan, resuming after a failed frame, finds the next preamble where the split did.
         pieces = rest[at:].split(PREAMBLE)
         end = len(pieces) - 1
         counts = collections.Counter(pieces[1:end])  # keys in order of first appearance
         limit = self.max_payload
-        odd = next((p for p in counts if not (len(p) >= 5 and p[0] != 0xAA and len(p) == (p[1] | (p[2] << 8)) + 5
-                                              and len(p) - 5 <= limit(p[0]))), None)
+        odd = next((p for p in counts if not _is_whole_frame(p, limit)), None)
         if odd is not None:
             end = pieces.index(odd, 1)
             counts = collections.Counter(pieces[1:end])
