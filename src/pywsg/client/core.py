@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
 from ..errors import BadChecksumReply, ConnectionLostError, ProtocolError, WsgError, error_for
@@ -15,15 +14,6 @@ T = TypeVar("T")
 
 DEFAULT_TIMEOUT = 1.0  # s for an immediate reply
 DEFAULT_MOTION_TIMEOUT = 60.0  # s for the final frame of a motion
-
-
-@dataclass
-class ReconnectPolicy:
-    """Opt-in automatic reconnection: ``attempts`` tries, ``delay`` s apart (doubling up to ``max_delay``)."""
-
-    attempts: int = 10
-    delay: float = 0.2
-    max_delay: float = 5.0
 
 
 def status_of(frame: Frame) -> Status | int:

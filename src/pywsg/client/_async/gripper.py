@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import builtins
 import logging
 import time
 import warnings
@@ -11,50 +10,30 @@ from collections.abc import AsyncIterator, Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ...errors import ConnectionLostError, TimeoutError, WsgError
-from ...protocol import (
-    ChecksumMismatch,
-    Command,
-    Frame,
-    FrameParser,
-    GarbageSkipped,
-    ParseError,
-    Status,
-    SystemFlag,
-    parse_datagram,
-)
+from ...errors import ConnectionLostError, WsgError
+from ...protocol import Frame, FrameParser, SystemFlag, parse_datagram
 from .. import calls, lifetime
 from ..calls import Call
-from ..commlog import RX, TX, CommHook, CommLog, frame_log
-from ..core import (
-    DEFAULT_MOTION_TIMEOUT,
-    DEFAULT_TIMEOUT,
-    ReconnectPolicy,
-    bad_checksum,
-    decode_success,
-    frame_from,
-    is_success,
-    needs_flags,
-    raise_for,
-    status_of,
-    stream_id,
-)
-from ..demux import Demux
-from ..types import Reply, Sample, State
-from ..url import Endpoint, parse_url
+from ..commlog import RX, TX, frame_log
+from ..core import DEFAULT_MOTION_TIMEOUT, DEFAULT_TIMEOUT, decode_success, frame_from, stream_id
+from ..demux import Waiter
+from ..reconnect import ReconnectPolicy
+from ..shell import log
+from ..types import Sample, State
+from ..url import Endpoint
 from .commands import AsyncCommands, AsyncFinger
 from .handles import AsyncMotion, AsyncStream, AWaiter
-from .transport import AsyncTransport, SerialTransport, TcpTransport, UdpTransport
+from .lifecycle import AsyncLifecycle
+from .transport import WAIT_TIMEOUT, AsyncTransport, SerialTransport, TcpTransport, UdpTransport
 
 __all__ = ["AsyncFinger", "AsyncGripper", "AsyncMotion", "AsyncStream", "ReconnectPolicy"]
 
-log = logging.getLogger("pywsg.client")
 T = TypeVar("T")
 
 _COMPACT_AT = 256  # timed waiters kept before the finished ones are swept out
 
 
-class AsyncGripper(AsyncCommands):
+class AsyncGripper(AsyncCommands, AsyncLifecycle):
     """asyncio driver for a WSG gripper. Open with ``await AsyncGripper.open(url)`` or
     ``async with AsyncGripper(url) as g``.
 
@@ -71,32 +50,17 @@ class AsyncGripper(AsyncCommands):
                  reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
                  on_reconnect: Callable[[SystemFlag], None] | None = None,
                  on_connection_lost: Callable[[BaseException | None], None] | None = None) -> None:
-        self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
-        self.timeout = timeout
-        self.motion_timeout = motion_timeout
-        self.connect_timeout = connect_timeout
-        self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
-        self.verify_checksum = verify_checksum
+        self._setup(url, timeout, motion_timeout, connect_timeout, reconnect, verify_checksum, on_reconnect,
+                    on_connection_lost)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._transport: AsyncTransport | None = None
-        self._parser = FrameParser(verify_checksum)
-        self._demux = Demux(time.monotonic)
-        self._comm = CommLog()
-        self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
-        self._streams: dict[Command, list[AsyncStream]] = {}
-        self._closing = False
-        self._opened_by = 0  # pid that connected it (lifetime)
-        self._reconnect_task: asyncio.Task[None] | None = None
+        self._reconnect_task: asyncio.Task[bool] | None = None
         # Timeouts: one timer per gripper at the earliest deadline of the calls in _timed, instead
         # of a timer handle created and cancelled per call (a heap push and a cancelled-timer sweep).
         self._timed: list[AWaiter] = []
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at = 0.0
         self._compact_at = _COMPACT_AT
-        self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
-        """Called with the system flags found after every reconnection."""
-        self.on_connection_lost: Callable[[BaseException | None], None] | None = on_connection_lost
-        self.last_error: BaseException | None = None
 
     # ------------------------------------------------------------------ connection
     @classmethod
@@ -105,24 +69,6 @@ class AsyncGripper(AsyncCommands):
         g = cls(url, **kwargs)
         await g.connect()
         return g
-
-    @property
-    def connected(self) -> bool:
-        return self._transport is not None
-
-    @property
-    def on_frame(self) -> CommHook | None:
-        """Communication log hook: called with a :class:`CommEntry` for every frame in and out."""
-        return self._comm.hook
-
-    @on_frame.setter
-    def on_frame(self, hook: CommHook | None) -> None:
-        self._comm.hook = hook
-
-    @property
-    def demux(self) -> Demux:
-        """The demultiplexer (counters ``unsolicited``, ``late``)."""
-        return self._demux
 
     async def connect(self) -> None:
         """Open the transport named by the URL."""
@@ -145,10 +91,11 @@ class AsyncGripper(AsyncCommands):
             else:
                 self._transport = await SerialTransport.connect(ep, self._on_data, self._on_lost,
                                                                 self.connect_timeout)
-        except (OSError, builtins.TimeoutError) as exc:
+        except OSError as exc:
             raise ConnectionLostError(f"cannot connect to {ep}: {exc or type(exc).__name__}") from exc
-        lifetime.opened(self)
-        log.debug("connected to %s", ep)
+        except WAIT_TIMEOUT as exc:  # Python 3.10: asyncio.TimeoutError is not the builtin TimeoutError
+            raise ConnectionLostError(f"cannot connect to {ep}: {exc or type(exc).__name__}") from exc
+        self._connected()
 
     async def close(self) -> None:
         """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
@@ -158,15 +105,10 @@ class AsyncGripper(AsyncCommands):
         if self._reconnect_task is not None:
             self._reconnect_task.cancel()
             self._reconnect_task = None
-        t = self._transport
-        if t is None:
+        if self._transport is None:
             return
-        if self.endpoint.scheme == "tcp":
-            try:
-                await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
-            except WsgError as exc:
-                log.debug("disconnect announcement: %s", exc)
-        self._drop_transport(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
+        await self._announce_disconnect()
+        self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
 
     def _close_at_exit(self) -> None:
         """No event loop runs any more: write 07h on the socket directly, without waiting for the reply."""
@@ -174,7 +116,7 @@ class AsyncGripper(AsyncCommands):
         if t is None:
             return
         self._closing = True
-        if self.endpoint.scheme == "tcp":
+        if self._announces:
             lifetime.announce_on_socket(t.raw_socket())
         try:
             t.close()
@@ -189,7 +131,7 @@ class AsyncGripper(AsyncCommands):
                       source=self)
         self._close_at_exit()
 
-    def _drop_transport(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
+    def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
         ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
         t, self._transport = self._transport, None
@@ -211,48 +153,20 @@ class AsyncGripper(AsyncCommands):
             self._streams.clear()
             self._subs.clear()
 
-    async def reconnect(self) -> SystemFlag:
-        """Close (announcing the disconnect if the link still works) and connect again; restore the
-        subscriptions. Returns the system flags found; a FAST STOP is reported (log warning,
-        ``on_reconnect``), never acknowledged."""
-        if self._transport is not None:
-            if self.endpoint.scheme == "tcp":
-                try:
-                    await self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
-                except WsgError:
-                    pass
-            self._drop_transport(ConnectionLostError("reconnecting"), end_streams=False)
-        await self.connect()
-        for streams in self._streams.values():
-            for st in streams:
-                st.revive()
-        for cmd, (period, change_only) in list(self._subs.items()):
-            await self._run(calls.subscribe(cmd, period, change_only))
-        flags = await self.system_state()
-        if flags & SystemFlag.SF_FAST_STOP:
-            log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
-        else:
-            log.info("reconnected to %s", self.endpoint)
-        if self.on_reconnect is not None:
-            self.on_reconnect(flags)
-        return flags
+    # lifecycle hooks (see _async/lifecycle.py)
+    async def _pause(self, delay: float) -> None:
+        await asyncio.sleep(delay)
 
-    async def _auto_reconnect(self) -> None:
-        policy = self.policy
-        assert policy is not None
-        delay = policy.delay
-        for attempt in range(1, policy.attempts + 1):
-            await asyncio.sleep(delay)
-            try:
-                await self.reconnect()
-                return
-            except WsgError as exc:
-                log.info("reconnect attempt %d to %s failed: %s", attempt, self.endpoint, exc)
-                self._drop_transport(ConnectionLostError(str(exc)), end_streams=False)
-                delay = min(delay * 2, policy.max_delay)
-        log.error("giving up reconnecting to %s", self.endpoint)
-        self._drop_transport(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True,
-                             forget=True)
+    def _forget_final(self, final: Waiter) -> None:
+        self._demux.forget_final(final)
+
+    def _resume_streams(self) -> None:
+        pass  # the streams are fed by the event loop's reading
+
+    def _start_reconnecting(self) -> None:
+        if self._reconnect_task is None and self._loop is not None:
+            self._reconnect_task = self._loop.create_task(self._auto_reconnect())
+            self._reconnect_task.add_done_callback(self._reconnect_done)
 
     async def __aenter__(self) -> AsyncGripper:
         await self.connect()
@@ -280,42 +194,18 @@ class AsyncGripper(AsyncCommands):
         for ev in parse_datagram(data, self.verify_checksum):
             self._on_event(ev)
 
-    def _on_event(self, ev: Frame | ParseError) -> None:
-        if isinstance(ev, Frame):
-            if self._comm.active:
-                self._comm.frame(RX, ev)
-            self._demux.feed(ev)
-            return
-        self._comm.error(RX, ev)
-        if isinstance(ev, ChecksumMismatch):
-            self._demux.feed_bad_checksum(ev, bad_checksum)
-        elif not isinstance(ev, GarbageSkipped):
-            log.warning("bad input from the gripper: %s", ev.message)
-
     def _on_lost(self, exc: BaseException | None) -> None:
-        if self._transport is None:
-            return
-        reason = f"connection to {self.endpoint} lost" + (f": {exc}" if exc else "")
-        if not self._closing:
-            log.warning("%s", reason)
-        self.last_error = exc
-        auto = self.policy is not None and not self._closing
-        self._drop_transport(ConnectionLostError(reason), end_streams=not auto)
-        if self.on_connection_lost is not None:
-            self.on_connection_lost(exc)
-        if auto and self._reconnect_task is None and self._loop is not None:
-            self._reconnect_task = self._loop.create_task(self._auto_reconnect())
-            self._reconnect_task.add_done_callback(self._reconnect_done)
+        if self._transport is not None:  # not dropped already
+            self._lost(exc)
 
-    def _reconnect_done(self, _t: asyncio.Task[None]) -> None:
+    def _reconnect_done(self, _t: asyncio.Task[bool]) -> None:
         self._reconnect_task = None
 
     # ------------------------------------------------------------------ requests
     def _transport_or_raise(self, cid: int) -> AsyncTransport:
         t = self._transport
         if t is None:
-            raise ConnectionLostError("not connected" if not self.last_error else
-                                      f"not connected (last error: {self.last_error})", cid)
+            raise self._not_connected(cid)
         return t
 
     async def _await_reconnect(self) -> None:
@@ -323,7 +213,9 @@ class AsyncGripper(AsyncCommands):
         if task is not None and self._transport is None:
             try:
                 await asyncio.wait_for(asyncio.shield(task), self.connect_timeout)
-            except (builtins.TimeoutError, asyncio.CancelledError):
+            except WAIT_TIMEOUT:
+                pass
+            except asyncio.CancelledError:
                 pass
 
     def _send(self, call: Call[Any], timeout: float | None) -> tuple[AWaiter, AWaiter | None]:
@@ -361,11 +253,6 @@ class AsyncGripper(AsyncCommands):
             await self._await_reconnect()
         w, final = self._send(call, timeout)
         return await self._reply(w), final
-
-    def _read_wire(self, call: Call[Any]) -> bytes:
-        """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
-        sub = self._subs.get(Command(call.command_id))
-        return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     # -- timeouts
     def _time(self, w: AWaiter, loop: asyncio.AbstractEventLoop, timeout: float) -> None:
@@ -419,17 +306,11 @@ class AsyncGripper(AsyncCommands):
             raise w.error
         return w.frame  # type: ignore[return-value]  # set when done without error
 
-    async def _wait(self, w: AWaiter, timeout: float) -> Frame:
+    async def _final_frame(self, w: AWaiter, timeout: float) -> Frame:
         loop = self._loop
         assert loop is not None
         self._time(w, loop, timeout)
         return await self._reply(w)
-
-    def _expire(self, w: AWaiter, timeout: float) -> None:
-        if not w.done:
-            w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s",
-                                from_device=False))
-            self._demux.abandon(w)
 
     async def _run(self, call: Call[T], timeout: float | None = None) -> T:
         """An immediate command: the decoded result, or the matching WsgError."""
@@ -454,58 +335,6 @@ class AsyncGripper(AsyncCommands):
                     return r
             return decode_success(call, frame)
         return await self._result(call, frame)
-
-    async def _result(self, call: Call[T], frame: Frame) -> T:
-        if is_success(frame):
-            return decode_success(call, frame)
-        st = status_of(frame)
-        if st in call.none_on:
-            return None  # type: ignore[return-value]
-        flags = await self._flags_quietly() if needs_flags(call, st) else None
-        raise raise_for(call, frame, flags)
-
-    async def _run_motion(self, call: Call[Any], wait: bool, timeout: float | None) -> AsyncMotion:
-        frame, final = await self._exchange(call, None)
-        st = status_of(frame)
-        if st == Status.E_CMD_PENDING:
-            motion = AsyncMotion(self, call, final)
-        else:
-            if final is not None:
-                self._demux.forget_final(final)
-            if st != Status.E_SUCCESS:
-                flags = await self._flags_quietly()
-                raise raise_for(call, frame, flags)
-            motion = AsyncMotion(self, call, None, frame)
-        if wait:
-            await motion.wait(timeout)
-        return motion
-
-    async def _flags_quietly(self) -> SystemFlag | None:
-        """The system flags for an error report, or None if they cannot be read."""
-        if self._transport is None:
-            return None
-        try:
-            frame, _ = await self._exchange(calls.system_state(), min(self.timeout, 0.5))
-            if status_of(frame) == Status.E_SUCCESS:
-                return decode_success(calls.system_state(), frame)
-        except WsgError:
-            pass
-        return None
-
-    async def request(self, command_id: int, payload: bytes = b"", *, check: bool = True,
-                      timeout: float | None = None) -> Reply:
-        """Raw request for custom commands (e.g. an on-board script's ID). Waits for a final frame
-        after E_CMD_PENDING. With ``check`` an error status raises; else it is in ``Reply.status``."""
-        call = calls.raw(command_id, payload)
-        frame, final = await self._exchange(call, timeout)
-        if status_of(frame) == Status.E_CMD_PENDING and final is not None:
-            frame = await self._wait(final, self.motion_timeout if timeout is None else timeout)
-        elif final is not None:
-            self._demux.forget_final(final)
-        st = status_of(frame)
-        if check and st != Status.E_SUCCESS:
-            raise raise_for(call, frame, None)
-        return Reply(frame.command_id, st, frame.params)
 
     async def state(self) -> State:
         """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
@@ -558,5 +387,3 @@ class AsyncGripper(AsyncCommands):
         finally:
             await s.close()
 
-    def __repr__(self) -> str:
-        return f"<AsyncGripper {self.endpoint} {'connected' if self.connected else 'closed'}>"

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import asyncio
-import builtins
 import collections
 import time
 from collections.abc import Callable
@@ -17,6 +16,7 @@ from ..core import sample_of
 from ..demux import Sink, Waiter
 from ..motion import MotionBase
 from ..types import Sample
+from .transport import WAIT_TIMEOUT
 
 
 class Host(Protocol):
@@ -80,7 +80,7 @@ class AsyncMotion(MotionBase):
             assert self._final is not None
             try:
                 await asyncio.wait_for(asyncio.shield(self._final.fut), timeout)
-            except builtins.TimeoutError:
+            except WAIT_TIMEOUT:  # Python 3.10: asyncio.TimeoutError is not the builtin
                 raise self._timed_out(timeout) from None
         if self._failed():
             self._fail(await self._gripper._flags_quietly())
@@ -156,7 +156,7 @@ class AsyncStream(Sink):
         """The next sample (waits at most ``timeout`` s; TimeoutError after that)."""
         try:
             return await asyncio.wait_for(self.__anext__(), timeout)
-        except builtins.TimeoutError:
+        except WAIT_TIMEOUT:  # Python 3.10: asyncio.TimeoutError is not the builtin
             raise TimeoutError(Status.E_TIMEOUT, int(self.command), f"no sample within {timeout} s",
                                from_device=False) from None
 

@@ -11,6 +11,7 @@ per read and caps a client at ~11k round trips/s on this machine class (~18k wit
 from __future__ import annotations
 
 import asyncio
+import builtins
 import os
 import socket
 from collections.abc import Callable
@@ -23,6 +24,10 @@ OnDatagram = Callable[[bytes], None]
 OnLost = Callable[[BaseException | None], None]
 
 _RECV_SIZE = 65536
+
+#: What ``asyncio.wait_for`` raises when its time is up. Python 3.10: ``asyncio.TimeoutError`` is its
+#: own class, not the builtin ``TimeoutError`` (they are one class from 3.11 on), so catch both.
+WAIT_TIMEOUT: tuple[type[Exception], ...] = (asyncio.TimeoutError, builtins.TimeoutError)
 
 
 class AsyncTransport:

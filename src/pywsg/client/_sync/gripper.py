@@ -16,51 +16,31 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ...errors import ConnectionLostError, TimeoutError, WsgError
-from ...protocol import (
-    ChecksumMismatch,
-    Command,
-    Frame,
-    FrameParser,
-    GarbageSkipped,
-    ParseError,
-    Status,
-    SystemFlag,
-    parse_datagram,
-)
+from ...errors import ConnectionLostError, WsgError
+from ...protocol import Frame, FrameParser, SystemFlag, parse_datagram
 from .. import calls, lifetime
 from ..calls import Call
-from ..commlog import RX, TX, CommHook, CommLog, frame_log
-from ..core import (
-    DEFAULT_MOTION_TIMEOUT,
-    DEFAULT_TIMEOUT,
-    ReconnectPolicy,
-    bad_checksum,
-    decode_success,
-    frame_from,
-    is_success,
-    needs_flags,
-    raise_for,
-    status_of,
-    stream_id,
-)
-from ..demux import Demux, Waiter
-from ..types import Reply, Sample, State
-from ..url import Endpoint, parse_url
+from ..commlog import RX, TX, frame_log
+from ..core import DEFAULT_MOTION_TIMEOUT, DEFAULT_TIMEOUT, decode_success, frame_from, stream_id
+from ..demux import Waiter
+from ..reconnect import ReconnectPolicy
+from ..shell import log
+from ..types import Sample, State
+from ..url import Endpoint
 from .connect import open_sync
 from .generated_commands import Commands, Finger
+from .generated_lifecycle import Lifecycle
 from .handles import Callbacks, Motion, Reader, Stream
 from .transport import SyncTransport
 
 __all__ = ["Finger", "Gripper", "Motion", "ReconnectPolicy", "Stream"]
 
-log = logging.getLogger("pywsg.client")
 T = TypeVar("T")
 
 _DEBUG = logging.DEBUG
 
 
-class Gripper(Commands):
+class Gripper(Commands, Lifecycle):
     """Blocking driver for a WSG gripper: ``with Gripper("tcp://192.168.1.20") as g: g.home()``.
 
     Same methods and arguments as :class:`~pywsg.client.AsyncGripper`, without ``await``.
@@ -73,31 +53,17 @@ class Gripper(Commands):
                  reconnect: bool | ReconnectPolicy = False, verify_checksum: bool = True,
                  connect: bool = True, on_reconnect: Callable[[SystemFlag], None] | None = None,
                  on_connection_lost: Callable[[BaseException | None], None] | None = None) -> None:
-        self.endpoint = url if isinstance(url, Endpoint) else parse_url(url)
-        self.timeout = timeout
-        self.motion_timeout = motion_timeout
-        self.connect_timeout = connect_timeout
-        self.policy: ReconnectPolicy | None = (ReconnectPolicy() if reconnect is True else reconnect or None)
-        self.verify_checksum = verify_checksum
+        self._setup(url, timeout, motion_timeout, connect_timeout, reconnect, verify_checksum, on_reconnect,
+                    on_connection_lost)
         self._lock = threading.Lock()
         self._cv = threading.Condition(self._lock)  # hot paths enter self._lock directly (C-level)
         self._send_lock = threading.Lock()
         self._reading = False
         self._sleepers = 0  # threads waiting on self._cv
         self._transport: SyncTransport | None = None
-        self._parser = FrameParser(verify_checksum)
         self._partial = False  # the parser holds part of a frame (kept by _feed, the parser's only feeder)
-        self._demux = Demux(time.monotonic)
-        self._comm = CommLog()
-        self._subs: dict[Command, tuple[float, bool]] = {}
-        self._streams: dict[Command, list[Stream]] = {}
         self._reader = Reader(self)   # the background reader while streams run
         self._callbacks = Callbacks()
-        self._closing = False
-        self._opened_by = 0  # pid that connected it (lifetime)
-        self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
-        self.on_connection_lost: Callable[[BaseException | None], None] | None = on_connection_lost
-        self.last_error: BaseException | None = None
         if connect:
             self.connect()
 
@@ -105,23 +71,6 @@ class Gripper(Commands):
     @classmethod
     def open(cls, url: str | Endpoint, **kwargs: Any) -> Gripper:
         return cls(url, **kwargs)
-
-    @property
-    def connected(self) -> bool:
-        return self._transport is not None
-
-    @property
-    def on_frame(self) -> CommHook | None:
-        """Communication log hook: called with a :class:`CommEntry` for every frame in and out."""
-        return self._comm.hook
-
-    @on_frame.setter
-    def on_frame(self, hook: CommHook | None) -> None:
-        self._comm.hook = hook
-
-    @property
-    def demux(self) -> Demux:
-        return self._demux
 
     def connect(self) -> None:
         if self._transport is not None:
@@ -135,19 +84,14 @@ class Gripper(Commands):
             self._partial = False
             self._transport = t
             self._closing = False
-        lifetime.opened(self)
-        log.debug("connected to %s", self.endpoint)
+        self._connected()
 
     def close(self) -> None:
         """Announce the disconnect (TCP: 07h, so the gripper does not FAST STOP), then close.
         A gripper still open when the interpreter exits is closed this way too (see docs/driver.md)."""
         self._closing = True
         lifetime.closed(self)
-        if self._transport is not None and self.endpoint.scheme == "tcp":
-            try:
-                self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
-            except WsgError as exc:
-                log.debug("disconnect announcement: %s", exc)
+        self._announce_disconnect()
         self._reader.stop()
         self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
         self._callbacks.stop()
@@ -162,7 +106,7 @@ class Gripper(Commands):
             return
         warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
                       "call close() or use 'with Gripper(...) as g'", ResourceWarning, stacklevel=1, source=self)
-        if self.endpoint.scheme == "tcp":
+        if self._announces:
             lifetime.announce_on_socket(getattr(t, "sock", None))
         t.close()
 
@@ -185,52 +129,20 @@ class Gripper(Commands):
         if t is not None:
             t.close()
 
-    def reconnect(self) -> SystemFlag:
-        """Close (announcing the disconnect if the link still works) and connect again; restore the
-        subscriptions. Returns the system flags; a FAST STOP found is reported, never acknowledged."""
-        if self._transport is not None:
-            if self.endpoint.scheme == "tcp":
-                try:
-                    self._run(calls.disconnect(), timeout=min(self.timeout, 1.0))
-                except WsgError:
-                    pass
-            self._drop(ConnectionLostError("reconnecting"), end_streams=False)
-        self.connect()
-        for lst in list(self._streams.values()):
-            for st in lst:
-                st.revive()
-        for cmd, (period, change_only) in list(self._subs.items()):
-            self._run(calls.subscribe(cmd, period, change_only))
+    # lifecycle hooks (see _async/lifecycle.py)
+    def _pause(self, delay: float) -> None:
+        time.sleep(delay)
+
+    def _forget_final(self, final: Waiter) -> None:
+        with self._lock:
+            self._demux.forget_final(final)
+
+    def _resume_streams(self) -> None:
         if self._streams and not self._reader.is_current():
             self._reader.start()
-        flags = self.system_state()
-        if flags & SystemFlag.SF_FAST_STOP:
-            log.warning("reconnected to %s: the gripper is in FAST STOP (not acknowledged)", self.endpoint)
-        else:
-            log.info("reconnected to %s", self.endpoint)
-        if self.on_reconnect is not None:
-            self.on_reconnect(flags)
-        return flags
 
-    def _auto_reconnect(self) -> bool:
-        policy = self.policy
-        if policy is None or self._closing:
-            return False
-        delay = policy.delay
-        for attempt in range(1, policy.attempts + 1):
-            time.sleep(delay)
-            if self._closing:
-                return False
-            try:
-                self.reconnect()
-                return True
-            except WsgError as exc:
-                log.info("reconnect attempt %d to %s failed: %s", attempt, self.endpoint, exc)
-                self._drop(ConnectionLostError(str(exc)), end_streams=False)
-                delay = min(delay * 2, policy.max_delay)
-        log.error("giving up reconnecting to %s", self.endpoint)
-        self._drop(ConnectionLostError("connection lost; reconnecting failed"), end_streams=True, forget=True)
-        return False
+    def _start_reconnecting(self) -> None:
+        pass  # on demand: by the next call (_transport_or_raise) or the stream reader
 
     def __enter__(self) -> Gripper:
         self.connect()
@@ -258,27 +170,6 @@ class Gripper(Commands):
             self._partial = parser.buffered > 0
         for ev in events:
             self._on_event(ev)
-
-    def _on_event(self, ev: Frame | ParseError) -> None:
-        if isinstance(ev, Frame):
-            if self._comm.active:
-                self._comm.frame(RX, ev)
-            self._demux.feed(ev)
-            return
-        self._comm.error(RX, ev)
-        if isinstance(ev, ChecksumMismatch):
-            self._demux.feed_bad_checksum(ev, bad_checksum)
-        elif not isinstance(ev, GarbageSkipped):
-            log.warning("bad input from the gripper: %s", ev.message)
-
-    def _lost(self, exc: BaseException | None) -> None:
-        reason = f"connection to {self.endpoint} lost" + (f": {exc}" if exc else "")
-        if not self._closing:
-            log.warning("%s", reason)
-        self.last_error = exc
-        self._drop(ConnectionLostError(reason), end_streams=self.policy is None or self._closing)
-        if self.on_connection_lost is not None:
-            self.on_connection_lost(exc)
 
     def _wait_for(self, w: Waiter, timeout: float, abandon: bool = True, deadline: float = 0.0) -> None:
         """Block until ``w`` is done or ``timeout`` s passed (then, with ``abandon``, fail it with
@@ -375,15 +266,11 @@ class Gripper(Commands):
                 self._sleepers -= 1
         return False
 
-    def _expire(self, w: Waiter, timeout: float) -> None:
-        if not w.done:
-            w.fail(TimeoutError(Status.E_TIMEOUT, w.command_id, f"no reply within {timeout:g} s", from_device=False))
-            self._demux.abandon(w)
-
     # ------------------------------------------------------------------ requests
     def _transport_or_raise(self, cid: int) -> SyncTransport:
         t = self._transport
-        if t is None and self.policy is not None and not self._closing and self._reader.thread is None:
+        if (t is None and self.policy is not None and not self._closing and self._reader.thread is None
+                and not self._backoff.gave_up):
             self._auto_reconnect()
             t = self._transport
         if t is None and self._reader.thread is not None and self.policy is not None:
@@ -392,8 +279,7 @@ class Gripper(Commands):
                 time.sleep(0.01)
             t = self._transport
         if t is None:
-            raise ConnectionLostError("not connected" if not self.last_error else
-                                      f"not connected (last error: {self.last_error})", cid)
+            raise self._not_connected(cid)
         return t
 
     def _send(self, t: SyncTransport, waiters: list[Waiter], wires: list[bytes]) -> None:
@@ -457,11 +343,6 @@ class Gripper(Commands):
             raise w.error
         assert w.frame is not None
         return w.frame, final
-
-    def _read_wire(self, call: Call[Any]) -> bytes:
-        """A read of a subscribed value repeats the subscription's flags: flags 0 would end it."""
-        sub = self._subs.get(Command(call.command_id)) if call.auto_read else None
-        return call.wire if sub is None else calls.subscribe(Command(call.command_id), *sub).wire
 
     def _run(self, call: Call[T], timeout: float | None = None) -> T:
         t = self._transport
@@ -554,61 +435,12 @@ class Gripper(Commands):
         assert w.frame is not None
         return w.frame
 
-    def _result(self, call: Call[T], frame: Frame) -> T:
-        if is_success(frame):
-            return decode_success(call, frame)
-        st = status_of(frame)
-        if st in call.none_on:
-            return None  # type: ignore[return-value]
-        raise raise_for(call, frame, self._flags_quietly() if needs_flags(call, st) else None)
-
-    def _run_motion(self, call: Call[Any], wait: bool, timeout: float | None) -> Motion:
-        frame, final = self._exchange(call, None)
-        st = status_of(frame)
-        if st == Status.E_CMD_PENDING:
-            motion = Motion(self, call, final)
-        else:
-            if final is not None:
-                with self._lock:
-                    self._demux.forget_final(final)
-            if st != Status.E_SUCCESS:
-                raise raise_for(call, frame, self._flags_quietly())
-            motion = Motion(self, call, None, frame)
-        if wait:
-            motion.wait(timeout)
-        return motion
-
-    def _flags_quietly(self) -> SystemFlag | None:
-        if self._transport is None:
-            return None
-        try:
-            frame, _ = self._exchange(calls.system_state(), min(self.timeout, 0.5))
-            if status_of(frame) == Status.E_SUCCESS:
-                return decode_success(calls.system_state(), frame)
-        except WsgError:
-            pass
-        return None
-
-    def request(self, command_id: int, payload: bytes = b"", *, check: bool = True,
-                timeout: float | None = None) -> Reply:
-        """Raw request for custom commands (e.g. an on-board script's ID). Waits for a final frame
-        after E_CMD_PENDING. With ``check`` an error status raises; else it is in ``Reply.status``."""
-        call = calls.raw(command_id, payload)
-        frame, final = self._exchange(call, timeout)
-        if status_of(frame) == Status.E_CMD_PENDING and final is not None:
-            limit = self.motion_timeout if timeout is None else timeout
-            self._wait_for(final, limit)
-            if final.error is not None:
-                raise final.error
-            assert final.frame is not None
-            frame = final.frame
-        elif final is not None:
-            with self._lock:
-                self._demux.forget_final(final)
-        st = status_of(frame)
-        if check and st != Status.E_SUCCESS:
-            raise raise_for(call, frame, None)
-        return Reply(frame.command_id, st, frame.params)
+    def _final_frame(self, final: Waiter, timeout: float) -> Frame:
+        self._wait_for(final, timeout)
+        if final.error is not None:
+            raise final.error
+        assert final.frame is not None
+        return final.frame
 
     def state(self) -> State:
         """Width, speed, force, gripper state, flags and temperature, read with 6 pipelined requests."""
@@ -625,7 +457,6 @@ class Gripper(Commands):
             assert w.frame is not None
             out.append(self._result(c, w.frame))
         return State(*out)
-
 
     # ------------------------------------------------------------------ streams
     def subscribe(self, what: str | int, period: float = 0.01, change_only: bool = False, *,
@@ -671,5 +502,3 @@ class Gripper(Commands):
     def _callback(self, stream: Stream, sample: Sample) -> None:
         self._callbacks.put(stream, sample)
 
-    def __repr__(self) -> str:
-        return f"<Gripper {self.endpoint} {'connected' if self.connected else 'closed'}>"
