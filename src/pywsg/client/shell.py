@@ -99,6 +99,7 @@ class ShellBase(Generic[S]):
         """A connection was made (the shell has set ``_transport``)."""
         self._backoff.connected()
         lifetime.opened(self)
+        self._guard()
         log.debug("connected to %s", self.endpoint)
 
     def _lost(self, exc: BaseException | None) -> None:
@@ -147,6 +148,10 @@ class ShellBase(Generic[S]):
         raise NotImplementedError
 
     def _start_reconnecting(self) -> None:
+        raise NotImplementedError
+
+    def _guard(self) -> None:
+        """Arm :func:`lifetime.guard` for the new connection (warn and announce if collected open)."""
         raise NotImplementedError
 
     def _close_at_exit(self) -> None:

@@ -7,7 +7,7 @@ methods are. Here: the disconnect announcement, ``reconnect()`` and the automati
 its back-off (:mod:`pywsg.client.reconnect`), the reply of an immediate command that is not
 E_SUCCESS, a motion's first reply, the system flags for an error report, and ``request()``. What
 differs between the shells is reached through a few hooks each supplies: ``connect``, ``_drop``,
-``_pause`` (sleep), ``_final_frame`` (wait for a final frame), ``_forget_final``,
+``_pause`` (sleep), ``_wait_closed``, ``_final_frame`` (wait for a final frame), ``_forget_final``,
 ``_resume_streams``, and the hot path ``_run`` / ``_exchange``.
 """
 
@@ -43,6 +43,8 @@ class AsyncLifecycle(ShellBase[AsyncStream]):
 
         async def _pause(self, delay: float) -> None: ...
 
+        async def _wait_closed(self) -> None: ...
+
         async def _final_frame(self, final: AWaiter, timeout: float) -> Frame: ...
 
         def _forget_final(self, final: Waiter) -> None: ...
@@ -65,6 +67,7 @@ class AsyncLifecycle(ShellBase[AsyncStream]):
         if self._transport is not None:
             await self._announce_disconnect()
             self._drop(ConnectionLostError("reconnecting"), end_streams=False)
+            await self._wait_closed()  # the gripper must see the old connection go before the new one
         await self.connect()
         self._revive_streams()
         for cmd, (period, change_only) in list(self._subs.items()):

@@ -49,12 +49,16 @@ class AsyncTransport:
     def close(self) -> None:
         raise NotImplementedError
 
+    async def wait_closed(self, timeout: float) -> None:
+        """After :meth:`close`: wait (at most ``timeout`` s) until the OS socket is really closed."""
+
 
 class _TcpProtocol(asyncio.BufferedProtocol):
     def __init__(self, on_data: OnData, on_lost: OnLost) -> None:
         self._buf = memoryview(bytearray(_RECV_SIZE))
         self._on_data = on_data
         self._on_lost = on_lost
+        self.closed: asyncio.Future[None] = asyncio.get_running_loop().create_future()
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self._buf
@@ -66,12 +70,15 @@ class _TcpProtocol(asyncio.BufferedProtocol):
         return False  # close our side too
 
     def connection_lost(self, exc: Exception | None) -> None:
+        if not self.closed.done():
+            self.closed.set_result(None)
         self._on_lost(exc)
 
 
 class TcpTransport(AsyncTransport):
-    def __init__(self, transport: asyncio.Transport) -> None:
+    def __init__(self, transport: asyncio.Transport, protocol: _TcpProtocol) -> None:
         self._t = transport
+        self._p = protocol
         peer = transport.get_extra_info("peername")
         self.peer = f"{peer[0]}:{peer[1]}" if peer else ""
 
@@ -79,14 +86,14 @@ class TcpTransport(AsyncTransport):
     async def connect(cls, ep: Endpoint, on_data: OnData, on_lost: OnLost, timeout: float) -> TcpTransport:
         loop = asyncio.get_running_loop()
         local: tuple[str, int] | None = (ep.bind, 0) if ep.bind else None
-        t, _ = await asyncio.wait_for(
+        t, p = await asyncio.wait_for(
             loop.create_connection(lambda: _TcpProtocol(on_data, on_lost), ep.host, ep.port, local_addr=local),
             timeout,
         )
         sock = t.get_extra_info("socket")
         if sock is not None:  # asyncio sets TCP_NODELAY already; be explicit, the protocol is request/reply
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return cls(t)
+        return cls(t, p)
 
     def write(self, data: bytes) -> None:
         self._t.write(data)
@@ -96,6 +103,13 @@ class TcpTransport(AsyncTransport):
 
     def close(self) -> None:
         self._t.close()
+
+    async def wait_closed(self, timeout: float) -> None:
+        # asyncio closes the socket one loop turn after close() (call_soon(_call_connection_lost))
+        try:
+            await asyncio.wait_for(asyncio.shield(self._p.closed), timeout)
+        except WAIT_TIMEOUT:
+            pass
 
     def abort(self) -> None:
         self._t.abort()

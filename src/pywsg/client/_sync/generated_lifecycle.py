@@ -35,6 +35,8 @@ class Lifecycle(ShellBase[Stream]):
 
         def _pause(self, delay: float) -> None: ...
 
+        def _wait_closed(self) -> None: ...
+
         def _final_frame(self, final: Waiter, timeout: float) -> Frame: ...
 
         def _forget_final(self, final: Waiter) -> None: ...
@@ -57,6 +59,7 @@ class Lifecycle(ShellBase[Stream]):
         if self._transport is not None:
             self._announce_disconnect()
             self._drop(ConnectionLostError("reconnecting"), end_streams=False)
+            self._wait_closed()  # the gripper must see the old connection go before the new one
         self.connect()
         self._revive_streams()
         for cmd, (period, change_only) in list(self._subs.items()):

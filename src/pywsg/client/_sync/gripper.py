@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import threading
 import time
-import warnings
 from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
@@ -100,19 +99,16 @@ class Gripper(Commands, Lifecycle):
         if self._transport is not None:
             self.close()
 
-    def __del__(self) -> None:
-        t = getattr(self, "_transport", None)
-        if t is None or not lifetime.owned(self):  # closed, never connected, __init__ failed, or forked
-            return
-        warnings.warn(f"unclosed {self!r}: disconnect announced at garbage collection; "
-                      "call close() or use 'with Gripper(...) as g'", ResourceWarning, stacklevel=1, source=self)
-        if self._announces:
-            lifetime.announce_on_socket(getattr(t, "sock", None))
-        t.close()
+    def _guard(self) -> None:
+        t = self._transport
+        assert t is not None
+        lifetime.guard(self, getattr(t, "sock", None) if self._announces else None,
+                       "call close() or use 'with Gripper(...) as g'", t.close)
 
     def _drop(self, exc: ConnectionLostError, end_streams: bool, forget: bool = False) -> None:
         """Close the transport and fail the waiting calls. ``end_streams``: the streams end with
         ``exc`` (kept for ``reconnect()`` unless ``forget``)."""
+        lifetime.unguard(self)
         with self._lock:
             t, self._transport = self._transport, None
             self._demux.fail_all(lambda cid: ConnectionLostError(exc.detail, cid))
@@ -132,6 +128,9 @@ class Gripper(Commands, Lifecycle):
     # lifecycle hooks (see _async/lifecycle.py)
     def _pause(self, delay: float) -> None:
         time.sleep(delay)
+
+    def _wait_closed(self) -> None:
+        pass  # a blocking socket is closed when close() returns
 
     def _forget_final(self, final: Waiter) -> None:
         with self._lock:
