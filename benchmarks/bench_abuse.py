@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import functools
 import os
 import re
 import resource
@@ -52,109 +51,31 @@ import select
 import socket
 import struct
 import subprocess
-import sys
 import threading
 import time
-from collections.abc import Callable
+from typing import Any
 
 import psutil
-from bench_transport import free_base  # run from benchmarks/ as a script, like its siblings
+from abuse_harness import (  # run from benchmarks/ as a script, like its siblings
+    ENV,
+    MIB,
+    PY,
+    SIM,
+    Case,
+    ProxyRun,
+    Sim,
+    WebSim,
+    fresh,
+    picked,
+    run_table,
+    sim_env,
+    summary,
+    waiting,
+    waits_text,
+)
+from bench_transport import free_base
 
 from pywsg.protocol import Frame, FrameParser, Status
-
-MIB = 1 << 20
-PY = sys.executable
-SIM = [PY, "-c", "from pywsg.cli.main import main; main()", "sim"]
-SIM_ENV: dict[str, str] | None = None  # --sim-path: the environment of every wsg sim process
-
-
-def peak_reset(pid: int) -> None:
-    """Reset a process's peak RSS (VmHWM) where the kernel allows it."""
-    try:
-        with open(f"/proc/{pid}/clear_refs", "w") as f:
-            f.write("5")
-    except OSError:
-        pass
-
-
-def peak(pid: int) -> int:
-    """Peak RSS (bytes) of ``pid`` since :func:`peak_reset`."""
-    with open(f"/proc/{pid}/status") as f:
-        for line in f:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024
-    return 0
-
-
-class Sim:
-    """A `wsg sim` subprocess on fixed ports."""
-
-    def __init__(self, count: int = 1, reply_port: int | None = None, serial: bool = False) -> None:
-        self.base = free_base(2 * count + 1)
-        self.tcp = self.base
-        self.udp = self.base + count
-        reply = 0 if reply_port is None else reply_port
-        args = ["sim", "--tcp-port", str(self.tcp), "--udp-port", str(self.udp), "--udp-reply-port",
-                str(reply if reply_port is not None else 0), "--serial", "pty" if serial else "off",
-                "--web-port", "0", "--count", str(count), "--no-uvloop"]
-        self.proc = subprocess.Popen([*SIM, *args[1:]], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                     text=True, env=SIM_ENV)
-        assert self.proc.stdout is not None
-        self.serial = ""  # the pty's path (serial=True)
-        for _ in range(2 * count + serial):
-            line = self.proc.stdout.readline()
-            if not line:
-                raise RuntimeError("wsg sim did not start")
-            if "serial://" in line:
-                self.serial = line.split("serial://", 1)[1].split("?")[0]
-        self.ps = psutil.Process(self.proc.pid)
-
-    def cpu(self) -> float:
-        t = self.ps.cpu_times()
-        return float(t.user + t.system)
-
-    def rss(self) -> int:
-        return int(self.ps.memory_info().rss)
-
-    def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(10)
-
-
-class Waiter(threading.Thread):
-    """The other client: UDP Loop requests back to back; records each wait (s)."""
-
-    def __init__(self, port: int) -> None:
-        super().__init__(daemon=True)
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(10)
-        self.port = port
-        self.waits: list[float] = []
-        self.lost = 0
-        self.stop = threading.Event()
-
-    def run(self) -> None:
-        n = 0
-        while not self.stop.is_set():
-            n += 1
-            req = Frame(0x06, n.to_bytes(4, "little")).encode()
-            t0 = time.perf_counter()
-            self.sock.sendto(req, ("127.0.0.1", self.port))
-            try:
-                self.sock.recvfrom(2048)
-            except TimeoutError:
-                self.lost += 1
-                continue
-            self.waits.append(time.perf_counter() - t0)
-            time.sleep(0.0005)
-
-    def finish(self) -> tuple[float, float, float]:
-        self.stop.set()
-        self.join(15)
-        self.sock.close()
-        w = sorted(self.waits) or [float("nan")]
-        return w[len(w) // 2], w[min(len(w) - 1, int(len(w) * 0.99))], w[-1]
 
 
 def repeat(pattern: bytes, size: int) -> bytes:
@@ -255,28 +176,19 @@ def udp_attack(sim: Sim, datagrams: list[bytes]) -> int:
     return got
 
 
-def measure(name: str, sent: int, attack: Callable[[Sim], int], serial: bool = False) -> None:
+def stream_row(case: Case[Sim]) -> str:
     """Two runs on fresh sims: CPU and RSS alone (the other client's own load would count), then
     the other client's waits while the attack runs."""
-    sim = Sim(serial=serial)
-    try:
-        time.sleep(0.2)
+    serial = case.name.startswith("serial")
+    with fresh(lambda: Sim(serial=serial)) as sim:
         cpu0, rss0 = sim.cpu(), sim.rss()
-        answers = attack(sim)
+        answers = case.attack(sim)
         cpu, rss = sim.cpu() - cpu0, sim.rss() - rss0
-    finally:
-        sim.close()
-    sim = Sim(serial=serial)
-    try:
-        waiter = Waiter(sim.udp)
-        waiter.start()
-        time.sleep(0.3)
-        attack(sim)
+    with fresh(lambda: Sim(serial=serial), settle=0) as sim, waiting(sim.udp, settle=0.3) as waiter:
+        case.attack(sim)
         p50, p99, worst = waiter.finish()
-    finally:
-        sim.close()
-    print(f"{name:44s} {cpu / (sent / MIB):8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
-          f"{rss / 1e6:7.1f} {answers:9d}", flush=True)
+    return (f"{cpu / (case.sent / MIB):8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
+            f"{rss / 1e6:7.1f} {answers:9d}")
 
 
 def reply_loop() -> None:
@@ -285,7 +197,7 @@ def reply_loop() -> None:
     sim = subprocess.Popen(
         [*SIM, "--tcp-port", "0", "--udp-port", str(probe), "--udp-reply-port", str(probe + 1), "--serial", "off",
          "--web-port", "0", "--count", "2", "--no-uvloop"],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=SIM_ENV)
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=sim_env())
     try:
         assert sim.stdout is not None
         for _ in range(2):
@@ -321,58 +233,14 @@ def self_loop() -> None:
     except PermissionError:
         print(f"{name:44s} skipped (forging a source port needs root)", flush=True)
         return
-    sim = Sim()
-    try:
-        time.sleep(0.2)
+    with contextlib.closing(raw), fresh(Sim) as sim:
         cpu0 = sim.cpu()
         raw.sendto(_udp_packet(sim.udp, Frame(0x06, b"loop").encode()), ("127.0.0.1", 0))
         time.sleep(1.0)
         print(f"{name:44s} {sim.cpu() - cpu0:8.3f}", flush=True)
-    finally:
-        raw.close()
-        sim.close()
 
 
 # -- Modbus/TCP and the web interface ------------------------------------------------------------
-
-def _nofile(n: int) -> None:
-    """In the sim's process before exec: ``ulimit -n n`` (the common default of 1024)."""
-    resource.setrlimit(resource.RLIMIT_NOFILE, (n, n))
-
-
-class WebSim:
-    """``wsg sim --host 0.0.0.0`` with TCP, Modbus/TCP and web, under ``ulimit -n 1024``."""
-
-    def __init__(self) -> None:
-        self.base = free_base(3)
-        self.tcp, self.modbus, self.web = self.base, self.base + 1, self.base + 2
-        self.proc = subprocess.Popen(
-            [*SIM, "--host", "0.0.0.0", "--tcp-port", str(self.tcp), "--udp-port", "0", "--serial", "off",
-             "--modbus-port", str(self.modbus), "--web-port", str(self.web), "--no-uvloop"],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=SIM_ENV,
-            preexec_fn=lambda: _nofile(1024))
-        assert self.proc.stdout is not None and self.proc.stderr is not None
-        self.password = ""
-        for _ in range(10):  # one line per interface; the web interface's comes last
-            line = self.proc.stdout.readline()
-            if not line:
-                raise RuntimeError("wsg sim did not start")
-            if str(self.web) in line:
-                break
-        line = self.proc.stderr.readline()  # "wsg web interface on HOST:PORT: password XYZ"
-        m = re.search(r"password (\S+)", line)
-        self.password = m.group(1) if m else ""
-        threading.Thread(target=self.proc.stderr.read, daemon=True).start()  # keep draining it
-        self.ps = psutil.Process(self.proc.pid)
-
-    def cpu(self) -> float:
-        t = self.ps.cpu_times()
-        return float(t.user + t.system)
-
-    def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(10)
-
 
 def _open_now(socks: list[socket.socket]) -> int:
     n = 0
@@ -416,7 +284,7 @@ def _command_port_ms(port: int) -> str:
 
 def idle_flood(sim: WebSim, port: int, n: int = 1100) -> str:
     """Open ``n`` idle connections to ``port``; returns the row's figures."""
-    cpu0, rss0 = sim.cpu(), sim.ps.memory_info().rss
+    cpu0, rss0 = sim.cpu(), sim.rss()
     socks: list[socket.socket] = []
     refused = 0
     for _ in range(n):
@@ -426,7 +294,7 @@ def idle_flood(sim: WebSim, port: int, n: int = 1100) -> str:
             refused += 1
     kept = _kept(socks)
     cmd = _command_port_ms(sim.tcp)
-    rss = sim.ps.memory_info().rss - rss0
+    rss = sim.rss() - rss0
     cpu = sim.cpu() - cpu0
     for s in socks:
         s.close()
@@ -472,10 +340,10 @@ def chunked(port: int, path: str, headers: dict[str, str], total: int) -> tuple[
 
 
 def body_attack(sim: WebSim, path: str, headers: dict[str, str], total: int, times: int) -> str:
-    peak_reset(sim.proc.pid)
-    rss0, cpu0, t0 = sim.ps.memory_info().rss, sim.cpu(), time.perf_counter()
+    sim.peak_reset()
+    rss0, cpu0, t0 = sim.rss(), sim.cpu(), time.perf_counter()
     results = [chunked(sim.web, path, headers, total) for _ in range(times)]
-    grown = peak(sim.proc.pid) - rss0
+    grown = sim.peak() - rss0
     took = max(sent for sent, _ in results)
     return (f"{results[-1][1]!r}, sim took <= {took / MIB:.1f} MiB of {total / MIB:.0f}, "
             f"peak RSS +{grown / 1e6:.0f} MB, CPU {sim.cpu() - cpu0:.2f} s, {time.perf_counter() - t0:.1f} s")
@@ -571,30 +439,25 @@ def web_pipelined(sim: WebSim, path: str, host: str = "", login: bool = True) ->
     cookie = f"Cookie: {_login(sim)}\r\n" if login else ""
     one = f"GET {path} HTTP/1.1\r\nHost: {host or f'127.0.0.1:{sim.web}'}\r\n{cookie}\r\n".encode()
     blob = one * (MIB // len(one))
-    waiter = TcpWaiter(sim.tcp)
-    waiter.start()
-    time.sleep(0.2)
-    rss0, cpu0, t0 = sim.ps.memory_info().rss, sim.cpu(), time.perf_counter()
-    peak_reset(sim.proc.pid)
-    got = 0
-    with socket.create_connection(("127.0.0.1", sim.web), timeout=120) as s:
-        def send() -> None:
-            with contextlib.suppress(OSError):  # the sim closes the connection once it is done
-                s.sendall(blob)
+    with waiting(sim.tcp, tcp=True) as waiter:
+        rss0, cpu0, t0 = sim.rss(), sim.cpu(), time.perf_counter()
+        sim.peak_reset()
+        got = 0
+        with socket.create_connection(("127.0.0.1", sim.web), timeout=120) as s:
+            def send() -> None:
+                with contextlib.suppress(OSError):  # the sim closes the connection once it is done
+                    s.sendall(blob)
 
-        threading.Thread(target=send, daemon=True).start()
-        with contextlib.suppress(OSError):
-            while chunk := s.recv(65536):
-                got += chunk.count(b"HTTP/1.1 ")  # a status line split across reads is missed: rare
-    dt = time.perf_counter() - t0
-    cpu = sim.cpu() - cpu0
-    grown = (peak(sim.proc.pid) - rss0) / 1e6
-    waiter.stop.set()
-    waiter.join(15)
-    w = sorted(waiter.waits) or [0.0]
-    p99 = w[min(len(w) - 1, int(len(w) * 0.99))]
+            threading.Thread(target=send, daemon=True).start()
+            with contextlib.suppress(OSError):
+                while chunk := s.recv(65536):
+                    got += chunk.count(b"HTTP/1.1 ")  # a status line split across reads is missed: rare
+        dt = time.perf_counter() - t0
+        cpu = sim.cpu() - cpu0
+        grown = (sim.peak() - rss0) / 1e6
+        waiter.finish()
     return (f"{got} of {len(blob) // len(one)} answered in {dt:.1f} s, CPU {cpu:.2f} s, RSS +{grown:.1f} MB, "
-            f"other client p50/p99/max {w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
+            f"{waits_text(summary(waiter.waits, 0.0))}")
 
 
 def web_many_connections(sim: WebSim, path: str, per_connection: int = 99) -> str:
@@ -607,180 +470,106 @@ def web_many_connections(sim: WebSim, path: str, per_connection: int = 99) -> st
     one = f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{sim.web}\r\n{auth}\r\n\r\n".encode()
     last = one.replace(b"\r\n\r\n", b"\r\nConnection: close\r\n\r\n")
     total = MIB // len(one)
-    waiter = TcpWaiter(sim.tcp)
-    waiter.start()
-    time.sleep(0.2)
     statuses: dict[bytes, int] = {}
-    cpu0, t0 = sim.cpu(), time.perf_counter()
-    for i in range(0, total, per_connection):
-        n = min(per_connection, total - i)
-        got = b""
-        with socket.create_connection(("127.0.0.1", sim.web), timeout=60) as s, contextlib.suppress(OSError):
-            s.sendall(one * (n - 1) + last)
-            while chunk := s.recv(65536):
-                got += chunk
-        for code in re.findall(rb"HTTP/1\.1 (\d{3}) ", got):
-            statuses[code] = statuses.get(code, 0) + 1
-    dt = time.perf_counter() - t0
-    cpu = sim.cpu() - cpu0
-    waiter.stop.set()
-    waiter.join(15)
-    w = sorted(waiter.waits) or [0.0]
-    p99 = w[min(len(w) - 1, int(len(w) * 0.99))]
+    with waiting(sim.tcp, tcp=True) as waiter:
+        cpu0, t0 = sim.cpu(), time.perf_counter()
+        for i in range(0, total, per_connection):
+            n = min(per_connection, total - i)
+            got = b""
+            with socket.create_connection(("127.0.0.1", sim.web), timeout=60) as s, contextlib.suppress(OSError):
+                s.sendall(one * (n - 1) + last)
+                while chunk := s.recv(65536):
+                    got += chunk
+            for code in re.findall(rb"HTTP/1\.1 (\d{3}) ", got):
+                statuses[code] = statuses.get(code, 0) + 1
+        dt = time.perf_counter() - t0
+        cpu = sim.cpu() - cpu0
+        waiter.finish()
     answers = ", ".join(f"{v} x {k.decode()}" for k, v in sorted(statuses.items()))
     return (f"{total} requests on {-(-total // per_connection)} connections: {answers}; {dt:.1f} s, "
-            f"CPU {cpu:.2f} s, other client p50/p99/max "
-            f"{w[len(w) // 2] * 1e3:.0f}/{p99 * 1e3:.0f}/{w[-1] * 1e3:.0f} ms")
+            f"CPU {cpu:.2f} s, {waits_text(summary(waiter.waits, 0.0))}")
+
+
+INTERFACE_CASES: list[Case[WebSim]] = [
+    Case("Modbus/TCP: 1,100 idle connections", lambda s: idle_flood(s, s.modbus)),
+    Case("web: 1,100 idle connections", lambda s: idle_flood(s, s.web)),
+    Case("web: 128 MiB chunked to /api/settings", lambda s: body_attack(
+        s, "/api/settings", _api_headers(s), 128 * MIB, 1)),
+    Case("web: 4 x 256 MiB chunked to POST /login", lambda s: body_attack(
+        s, "/login", {"Content-Type": "application/x-www-form-urlencoded"}, 256 * MIB, 4)),
+    Case("web: 1,001 cookieless GETs, user logged in", session_flood),
+    Case("Modbus/TCP: 3 requests in one write", lambda s: modbus_pipelined(s, 3)),
+    Case("Modbus/TCP: 1,000 requests in one write", lambda s: modbus_pipelined(s, 1000)),
+    Case("Modbus/TCP: 6,000 requests in one write", lambda s: modbus_pipelined(s, 6000)),
+    Case("Modbus/TCP: 1 MiB of requests in one write", lambda s: modbus_pipelined(s, MIB // 12)),
+    Case("web: 1 MiB pipelined GET /api/world", lambda s: web_pipelined(s, "/api/world")),
+    Case("web: 1 MiB pipelined 404s", lambda s: web_pipelined(s, "/no/such/page")),
+    Case("web: 1 MiB pipelined, bad Host", lambda s: web_pipelined(s, "/api/world", host="evil.example")),
+    Case("web: 1 MiB over connections of 99, GET /api/world", lambda s: web_many_connections(s, "/api/world")),
+    Case("web: 1 MiB over connections of 99, 404s", lambda s: web_many_connections(s, "/no/such/page")),
+    Case("web: 1 MiB, one request per connection, 404s", lambda s: web_many_connections(s, "/no/such/page", 1)),
+]
+
+
+def interface_row(case: Case[WebSim]) -> str:
+    """A Modbus/TCP or web row: one sim each, so one attack cannot spoil the next."""
+    with fresh(WebSim, settle=0.3) as sim:
+        try:
+            result = case.attack(sim)
+        except Exception as exc:  # a figure for the table, not a traceback
+            result = f"failed: {type(exc).__name__}: {exc}"
+        alive = "sim alive" if sim.proc.poll() is None else f"sim exited {sim.proc.returncode}"
+    return f"{result}; {alive}"
 
 
 def interfaces(only: list[str]) -> None:
-    """The Modbus/TCP and web rows: one sim each, so one attack cannot spoil the next."""
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     resource.setrlimit(resource.RLIMIT_NOFILE, (max(soft, min(hard, 8192)), hard))  # our own 2,200 sockets
-    rows: list[tuple[str, Callable[[WebSim], str]]] = [
-        ("Modbus/TCP: 1,100 idle connections", lambda s: idle_flood(s, s.modbus)),
-        ("web: 1,100 idle connections", lambda s: idle_flood(s, s.web)),
-        ("web: 128 MiB chunked to /api/settings", lambda s: body_attack(
-            s, "/api/settings", _api_headers(s), 128 * MIB, 1)),
-        ("web: 4 x 256 MiB chunked to POST /login", lambda s: body_attack(
-            s, "/login", {"Content-Type": "application/x-www-form-urlencoded"}, 256 * MIB, 4)),
-        ("web: 1,001 cookieless GETs, user logged in", session_flood),
-        ("Modbus/TCP: 3 requests in one write", lambda s: modbus_pipelined(s, 3)),
-        ("Modbus/TCP: 1,000 requests in one write", lambda s: modbus_pipelined(s, 1000)),
-        ("Modbus/TCP: 6,000 requests in one write", lambda s: modbus_pipelined(s, 6000)),
-        ("Modbus/TCP: 1 MiB of requests in one write", lambda s: modbus_pipelined(s, MIB // 12)),
-        ("web: 1 MiB pipelined GET /api/world", lambda s: web_pipelined(s, "/api/world")),
-        ("web: 1 MiB pipelined 404s", lambda s: web_pipelined(s, "/no/such/page")),
-        ("web: 1 MiB pipelined, bad Host", lambda s: web_pipelined(s, "/api/world", host="evil.example")),
-        ("web: 1 MiB over connections of 99, GET /api/world", lambda s: web_many_connections(s, "/api/world")),
-        ("web: 1 MiB over connections of 99, 404s", lambda s: web_many_connections(s, "/no/such/page")),
-        ("web: 1 MiB, one request per connection, 404s", lambda s: web_many_connections(s, "/no/such/page", 1)),
-    ]
-    for name, attack in rows:
-        if only and not any(o in name for o in only):
-            continue
-        sim = WebSim()
-        try:
-            time.sleep(0.3)
-            try:
-                result = attack(sim)
-            except Exception as exc:  # a figure for the table, not a traceback
-                result = f"failed: {type(exc).__name__}: {exc}"
-            alive = "sim alive" if sim.proc.poll() is None else f"sim exited {sim.proc.returncode}"
-            print(f"{name:44s} {result}; {alive}", flush=True)
-        finally:
-            sim.close()
-
-
-class ProxyRun:
-    """``wsg proxy --to`` a sim's TCP port, printing text lines to a file, writing --jsonl (and --pcap)."""
-
-    def __init__(self, sim: Sim, tmp: str, pcap: bool) -> None:
-        self.port = free_base(1)
-        self.text = os.path.join(tmp, "proxy.txt")
-        self.jsonl = os.path.join(tmp, "proxy.jsonl")
-        self.out = open(self.text, "w")  # noqa: SIM115 - closed in close()
-        self.proc = subprocess.Popen([*SIM[:-1], "proxy", "--listen", str(self.port), "--to",
-                                      f"tcp://127.0.0.1:{sim.tcp}", "--jsonl", self.jsonl,
-                                      *(["--pcap", os.path.join(tmp, "proxy.pcapng")] if pcap else [])],
-                                     stdout=self.out, stderr=subprocess.PIPE, text=True, env=SIM_ENV)
-        assert self.proc.stderr is not None
-        if not self.proc.stderr.readline().startswith("proxy "):
-            raise RuntimeError("wsg proxy did not start")
-        self.ps = psutil.Process(self.proc.pid)
-
-    def cpu(self) -> float:
-        t = self.ps.cpu_times()
-        return float(t.user + t.system)
-
-    def log_bytes(self) -> int:
-        return os.path.getsize(self.text) + os.path.getsize(self.jsonl)
-
-    def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(30)
-        self.out.close()
-
-
-class TcpWaiter(Waiter):
-    """The other client through the proxy: TCP Loop requests back to back."""
-
-    def __init__(self, port: int) -> None:
-        threading.Thread.__init__(self, daemon=True)
-        self.sock = socket.create_connection(("127.0.0.1", port))
-        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self.sock.settimeout(10)
-        self.waits = []
-        self.lost = 0
-        self.stop = threading.Event()
-
-    def run(self) -> None:
-        n = 0
-        parser = FrameParser()
-        while not self.stop.is_set():
-            n += 1
-            req = Frame(0x06, n.to_bytes(4, "little")).encode()
-            t0 = time.perf_counter()
-            self.sock.sendall(req)
-            try:
-                while not any(isinstance(e, Frame) for e in parser.feed(self.sock.recv(4096))):
-                    pass
-            except TimeoutError:
-                self.lost += 1
-                continue
-            self.waits.append(time.perf_counter() - t0)
-            time.sleep(0.0005)
+    run_table(INTERFACE_CASES, only, interface_row)
 
 
 def _proxy_run(blob: bytes, with_waiter: bool, pcap: bool) -> tuple[float, int, int, tuple[float, float, float]]:
     """One fresh sim and proxy: send ``blob``; (proxy CPU s, peak RSS growth, log bytes, waits)."""
     import tempfile
 
-    sim = Sim()
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            px = ProxyRun(sim, tmp, pcap)
-            try:
-                waiter = TcpWaiter(px.port) if with_waiter else None
-                if waiter is not None:
-                    waiter.start()
-                time.sleep(0.3)
-                cpu0, rss0 = px.cpu(), int(px.ps.memory_info().rss)
-                peak_reset(px.proc.pid)
-                s = socket.create_connection(("127.0.0.1", px.port))
-                # the waiter holds control when it runs: then 07h is answered E_ACCESS_DENIED
-                byes = (Frame.reply(0x07, Status.E_SUCCESS).encode(),
-                        Frame.reply(0x07, Status.E_ACCESS_DENIED).encode())
-                tail = bytearray()
+    with fresh(Sim, settle=0) as sim, tempfile.TemporaryDirectory() as tmp, \
+            fresh(lambda: ProxyRun(sim, tmp, pcap), settle=0) as px:
+        with contextlib.ExitStack() as stack:
+            waiter = stack.enter_context(waiting(px.port, tcp=True, settle=0)) if with_waiter else None
+            time.sleep(0.3)
+            cpu0, rss0 = px.cpu(), px.rss()
+            px.peak_reset()
+            s = socket.create_connection(("127.0.0.1", px.port))
+            # the waiter holds control when it runs: then 07h is answered E_ACCESS_DENIED
+            byes = (Frame.reply(0x07, Status.E_SUCCESS).encode(),
+                    Frame.reply(0x07, Status.E_ACCESS_DENIED).encode())
+            tail = bytearray()
 
-                def drain() -> None:
-                    with contextlib.suppress(OSError):  # the proxy before item 1 reset the connection
-                        while not tail.endswith(byes) and (data := s.recv(1 << 16)):
-                            tail[:] = tail[-64:] + data
+            def drain() -> None:
+                with contextlib.suppress(OSError):  # the proxy before item 1 reset the connection
+                    while not tail.endswith(byes) and (data := s.recv(1 << 16)):
+                        tail[:] = tail[-64:] + data
 
-                reader = threading.Thread(target=drain, daemon=True)
-                reader.start()
-                s.sendall(blob)
-                s.sendall(b"\x00" * 2100 + Frame(0x07).encode())
-                reader.join(120)
-                s.close()
-                waits = waiter.finish() if waiter is not None else (0.0, 0.0, 0.0)
-                time.sleep(1.5)  # the proxy's decoding catches up
-                return px.cpu() - cpu0, peak(px.proc.pid) - rss0, px.log_bytes(), waits
-            finally:
-                px.close()
-    finally:
-        sim.close()
+            reader = threading.Thread(target=drain, daemon=True)
+            reader.start()
+            s.sendall(blob)
+            s.sendall(b"\x00" * 2100 + Frame(0x07).encode())
+            reader.join(120)
+            s.close()
+            waits = waiter.finish() if waiter is not None else (0.0, 0.0, 0.0)
+        time.sleep(1.5)  # the proxy's decoding catches up
+        return px.cpu() - cpu0, px.peak() - rss0, px.log_bytes(), waits
 
 
-def proxy_case(name: str, blob: bytes, pcap: bool) -> None:
+def proxy_row(case: Case[bytes]) -> str:
     """``blob`` through `wsg proxy` (text log, --jsonl, --pcap) to a sim: the proxy's CPU, its log
     bytes per byte sent and its peak RSS growth alone; then the wait of another client of the same
     proxy while it runs."""
+    blob, pcap = case.extra
     cpu, rss, logged, _ = _proxy_run(blob, False, pcap)
     _, _, _, (p50, p99, worst) = _proxy_run(blob, True, pcap)
-    print(f"{name:44s} {cpu / (len(blob) / MIB):8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
-          f"{rss / 1e6:7.1f} {logged / len(blob):8.1f}x", flush=True)
+    return (f"{cpu / (len(blob) / MIB):8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
+            f"{rss / 1e6:7.1f} {logged / len(blob):8.1f}x")
 
 
 def random_crcs(size: int) -> bytes:
@@ -791,7 +580,7 @@ def random_crcs(size: int) -> bytes:
 
 
 def proxy_cases(size: int, only: list[str]) -> None:
-    cases = [
+    blobs: list[tuple[str, bytes, bool]] = [
         ("proxy: random bytes (baseline)", os.urandom(size), False),
         ("proxy: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), False),
         ("proxy: valid 50h requests", repeat(Frame(0x50).encode(), size), False),
@@ -801,11 +590,9 @@ def proxy_cases(size: int, only: list[str]) -> None:
         ("proxy --pcap: 70,000 zero bytes then 06h", b"\0" * 70_000 + Frame(0x06, b"x").encode(), True),
         ("proxy --pcap: 8-byte frames with bad CRCs", repeat(Frame(0x50).encode()[:-2] + b"\0\0", size), True),
     ]
-    print(f"{'proxy (text log, --jsonl)':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} "
-          f"{'max ms':>7s} {'RSS MB':>7s} {'log/sent':>9s}")
-    for name, blob, pcap in cases:
-        if not only or any(o in name for o in only):
-            proxy_case(name, blob, pcap)
+    cases: list[Case[Any]] = [Case(name, lambda _: None, len(blob), (blob, pcap)) for name, blob, pcap in blobs]
+    run_table(cases, only, proxy_row, f"{'proxy (text log, --jsonl)':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} "
+              f"{'p99 ms':>7s} {'max ms':>7s} {'RSS MB':>7s} {'log/sent':>9s}")
 
 
 def main() -> None:
@@ -814,46 +601,40 @@ def main() -> None:
     ap.add_argument("--only", default="", help="comma-separated substrings of attack names")
     ap.add_argument("--sim-path", default="", help="run wsg sim from the pywsg package in this directory")
     args = ap.parse_args()
-    global SIM_ENV
     if args.sim_path:
-        SIM_ENV = {**os.environ, "PYTHONPATH": os.path.abspath(args.sim_path)}
+        ENV["sim"] = {**os.environ, "PYTHONPATH": os.path.abspath(args.sim_path)}
     size = int(args.mib * MIB)
     forged = repeat(b"\xaa\xaa\xaa\x99\x00\x04", size)
     udp_blob = repeat(b"\xaa\xaa\xaa\x99\x00\x04", 65507)
     n_dgrams = max(1, size // 65507)
     many = b"".join(Frame(0x06, bytes([i])).encode() for i in range(50))
-    attacks: list[tuple[str, int, Callable[[Sim], int]]] = [
-        ("random bytes (baseline)", size, lambda s: tcp_attack(s, os.urandom(size))),
-        ("forged 1 KiB headers AA AA AA 99 00 04", size, lambda s: tcp_attack(s, forged)),
-        ("forged headers, refused second client", size, lambda s: tcp_attack(s, forged, second=True)),
-        ("SIZE too large AA AA AA 20 FF FF", size, lambda s: tcp_attack(s, repeat(b"\xaa\xaa\xaa\x20\xff\xff", size))),
-        ("complete frames with bad CRCs", size,
-         lambda s: tcp_attack(s, repeat(Frame(0x06, b"x").encode()[:-2] + b"\0\0", size))),
-        ("valid Loop requests (legitimate load)", size,
-         lambda s: tcp_attack(s, repeat(Frame(0x06, b"x").encode(), size))),
-        ("valid 50h requests (8 bytes each)", size, lambda s: tcp_attack(s, repeat(Frame(0x50).encode(), size))),
-        (f"UDP: {n_dgrams} datagrams of 65,507 B forged", n_dgrams * 65507,
-         lambda s: udp_attack(s, [udp_blob] * n_dgrams)),
-        ("UDP: 50 requests in one datagram (x100)", 100 * len(many), lambda s: udp_attack(s, [many] * 100)),
+    bad_crc = repeat(Frame(0x06, b"x").encode()[:-2] + b"\0\0", size)
+    loops = repeat(Frame(0x06, b"x").encode(), size)
+    attacks: list[Case[Sim]] = [
+        Case("random bytes (baseline)", lambda s: tcp_attack(s, os.urandom(size)), size),
+        Case("forged 1 KiB headers AA AA AA 99 00 04", lambda s: tcp_attack(s, forged), size),
+        Case("forged headers, refused second client", lambda s: tcp_attack(s, forged, second=True), size),
+        Case("SIZE too large AA AA AA 20 FF FF", lambda s: tcp_attack(s, repeat(b"\xaa\xaa\xaa\x20\xff\xff", size)),
+             size),
+        Case("complete frames with bad CRCs", lambda s: tcp_attack(s, bad_crc), size),
+        Case("valid Loop requests (legitimate load)", lambda s: tcp_attack(s, loops), size),
+        Case("valid 50h requests (8 bytes each)", lambda s: tcp_attack(s, repeat(Frame(0x50).encode(), size)), size),
+        Case(f"UDP: {n_dgrams} datagrams of 65,507 B forged", lambda s: udp_attack(s, [udp_blob] * n_dgrams),
+             n_dgrams * 65507),
+        Case("UDP: 50 requests in one datagram (x100)", lambda s: udp_attack(s, [many] * 100), 100 * len(many)),
+        Case("serial (pty): random bytes (baseline)", lambda s: serial_attack(s, os.urandom(size)), size),
+        Case("serial (pty): complete frames with bad CRCs", lambda s: serial_attack(s, bad_crc), size),
+        Case("serial (pty): valid Loop requests", lambda s: serial_attack(s, loops), size),
     ]
-    serial_rows = [
-        ("serial (pty): random bytes (baseline)", os.urandom(size)),
-        ("serial (pty): complete frames with bad CRCs", repeat(Frame(0x06, b"x").encode()[:-2] + b"\0\0", size)),
-        ("serial (pty): valid Loop requests", repeat(Frame(0x06, b"x").encode(), size)),
-    ]
-    attacks += [(name, size, functools.partial(serial_attack, blob=blob)) for name, blob in serial_rows]
     only = [o for o in args.only.split(",") if o]
-    print(f"{'attack':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s} {'RSS MB':>7s} "
-          f"{'answers':>9s}")
-    for name, sent, attack in attacks:
-        if not only or any(o in name for o in only):
-            measure(name, sent, attack, serial=name.startswith("serial"))
-    if not only or any(o in "CAN (virtual bus)" for o in only):  # in-process: a child of its own
+    run_table(attacks, only, stream_row, f"{'attack':44s} {'CPU s/MiB':>8s} {'p50 ms':>7s} {'p99 ms':>7s} "
+              f"{'max ms':>7s} {'RSS MB':>7s} {'answers':>9s}")
+    if picked("CAN (virtual bus)", only):  # in-process: a child of its own
         subprocess.run([PY, os.path.join(os.path.dirname(os.path.abspath(__file__)), "abuse_can.py"),
-                        "--mib", str(args.mib)], env=SIM_ENV, check=False)
-    if not only or any(o in "reply loop" for o in only):
+                        "--mib", str(args.mib)], env=sim_env(), check=False)
+    if picked("reply loop", only):
         reply_loop()
-    if not only or any(o in "self-loop" for o in only):
+    if picked("self-loop", only):
         self_loop()
     interfaces(only)
     proxy_cases(size, only)
