@@ -27,7 +27,7 @@ import logging
 from collections import deque
 from collections.abc import Callable
 
-from ..protocol import ChecksumMismatch, Frame, Status
+from ..protocol import ChecksumMismatch, Command, Frame, Status
 
 log = logging.getLogger("pywsg.client")
 
@@ -68,7 +68,9 @@ class Waiter:
 
 
 class Sink:
-    """A stream's receiving end. Shells subclass it."""
+    """A stream's receiving end, for one auto-update ``command``. Shells subclass it."""
+
+    command: Command
 
     def push(self, frame: Frame) -> None:
         raise NotImplementedError

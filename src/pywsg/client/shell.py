@@ -10,10 +10,11 @@ the blocking shell by ``scripts/unasync_client.py``, as the command methods are.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections.abc import Callable
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, TypeVar
 
 from ..errors import ConnectionLostError, TimeoutError
 from ..protocol import ChecksumMismatch, Command, Frame, FrameParser, GarbageSkipped, ParseError, Status, SystemFlag
@@ -21,22 +22,14 @@ from . import calls, lifetime
 from .calls import Call
 from .commlog import RX, CommHook, CommLog
 from .core import bad_checksum
-from .demux import Demux, Waiter
+from .demux import Demux, Sink, Waiter
 from .reconnect import Backoff, ReconnectPolicy
 from .url import Endpoint, parse_url
 
 log = logging.getLogger("pywsg.client")
 
 
-class StreamLike(Protocol):
-    """What the shared lifecycle does with a shell's streams."""
-
-    def revive(self) -> None: ...
-
-    def end(self, exc: BaseException | None) -> None: ...
-
-
-S = TypeVar("S", bound=StreamLike)
+S = TypeVar("S", bound=Sink)  # the shell's stream type
 
 
 class ShellBase(Generic[S]):
@@ -62,6 +55,8 @@ class ShellBase(Generic[S]):
         self._comm = CommLog()
         self._subs: dict[Command, tuple[float, bool]] = {}  # device subscriptions to restore
         self._streams: dict[Command, list[S]] = {}
+        # held while _streams, _subs and the demux's streams change (the blocking shell: its lock)
+        self._state_lock: contextlib.AbstractContextManager[Any] = contextlib.nullcontext()
         self._closing = False
         self._opened_by = 0  # pid that connected it (lifetime)
         self.on_reconnect: Callable[[SystemFlag], None] | None = on_reconnect
@@ -115,6 +110,25 @@ class ShellBase(Generic[S]):
             self.on_connection_lost(exc)
         if auto:
             self._start_reconnecting()
+
+    def _add_stream(self, stream: S) -> None:
+        with self._state_lock:
+            self._streams.setdefault(stream.command, []).append(stream)
+            self._demux.add_stream(stream.command, stream)
+
+    def _remove_stream(self, stream: S) -> bool:
+        """Forget ``stream``; True when it was the last of its command (the subscription can end)."""
+        cmd = stream.command
+        with self._state_lock:
+            self._demux.remove_stream(cmd, stream)
+            lst = self._streams.get(cmd, [])
+            if stream in lst:
+                lst.remove(stream)
+            if lst:
+                return False
+            self._streams.pop(cmd, None)
+            self._subs.pop(cmd, None)
+            return True
 
     def _revive_streams(self) -> None:
         for lst in list(self._streams.values()):

@@ -9,15 +9,14 @@ from collections.abc import AsyncIterator, Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ...errors import ConnectionLostError, WsgError
+from ...errors import ConnectionLostError
 from ...protocol import Frame, FrameParser, SystemFlag, parse_datagram
-from .. import calls, lifetime
+from .. import lifetime
 from ..calls import Call
 from ..commlog import RX, TX, frame_log
 from ..core import DEFAULT_MOTION_TIMEOUT, DEFAULT_TIMEOUT, decode_success, frame_from, stream_id
 from ..demux import Waiter
 from ..reconnect import ReconnectPolicy
-from ..shell import log
 from ..types import Sample, State
 from ..url import Endpoint
 from .commands import AsyncCommands, AsyncFinger
@@ -110,6 +109,7 @@ class AsyncGripper(AsyncCommands, AsyncLifecycle):
             return
         await self._announce_disconnect()
         self._drop(ConnectionLostError("connection closed by the client"), end_streams=True, forget=True)
+        await self._wait_closed()  # closed when close() returns: a new connection right after is not refused
 
     def _close_at_exit(self) -> None:
         """No event loop runs any more: write 07h on the socket directly, without waiting for the reply."""
@@ -175,6 +175,9 @@ class AsyncGripper(AsyncCommands, AsyncLifecycle):
 
     def _resume_streams(self) -> None:
         pass  # the streams are fed by the event loop's reading
+
+    def _streams_idle(self) -> None:
+        pass
 
     def _start_reconnecting(self) -> None:
         if self._reconnect_task is None and self._loop is not None:
@@ -362,33 +365,7 @@ class AsyncGripper(AsyncCommands, AsyncLifecycle):
         """Auto-update stream of ``what`` ("system_state", "gripper_state", "width", "speed", "force"
         or the command ID), one packet at most every ``period`` s (>= 0.01), only on change if
         ``change_only``. The first sample is the current value."""
-        cmd = stream_id(what)
-        stream = AsyncStream(self, cmd, maxlen)
-        self._streams.setdefault(cmd, []).append(stream)
-        self._demux.add_stream(cmd, stream)
-        try:
-            await self._run(calls.subscribe(cmd, period, change_only))
-        except BaseException:
-            self._demux.remove_stream(cmd, stream)
-            self._streams[cmd].remove(stream)
-            raise
-        self._subs[cmd] = (period, change_only)
-        return stream
-
-    async def _unsubscribe(self, stream: AsyncStream) -> None:
-        cmd = stream.command
-        self._demux.remove_stream(cmd, stream)
-        lst = self._streams.get(cmd, [])
-        if stream in lst:
-            lst.remove(stream)
-        if not lst:
-            self._streams.pop(cmd, None)
-            self._subs.pop(cmd, None)
-            if self._transport is not None:
-                try:
-                    await self._run(calls.unsubscribe(cmd))
-                except WsgError as exc:
-                    log.debug("unsubscribe %s: %s", cmd.name, exc)
+        return await self._open_stream(AsyncStream(self, stream_id(what), maxlen), period, change_only)
 
     async def stream(self, what: str | int, period: float = 0.01,
                      change_only: bool = False) -> AsyncIterator[Sample]:

@@ -4,11 +4,11 @@
 This file is the source: ``_sync/generated_lifecycle.py`` (``Lifecycle``, mixed into the blocking
 :class:`~pywsg.client.Gripper`) is generated from it by ``scripts/unasync_client.py``, as the command
 methods are. Here: the disconnect announcement, ``reconnect()`` and the automatic reconnection with
-its back-off (:mod:`pywsg.client.reconnect`), the reply of an immediate command that is not
+its back-off (:mod:`pywsg.client.reconnect`), stream subscriptions, the reply of an immediate command that is not
 E_SUCCESS, a motion's first reply, the system flags for an error report, and ``request()``. What
 differs between the shells is reached through a few hooks each supplies: ``connect``, ``_drop``,
 ``_pause`` (sleep), ``_wait_closed``, ``_final_frame`` (wait for a final frame), ``_forget_final``,
-``_resume_streams``, and the hot path ``_run`` / ``_exchange``.
+``_resume_streams``, ``_streams_idle``, and the hot path ``_run`` / ``_exchange``.
 """
 
 from __future__ import annotations
@@ -51,6 +51,8 @@ class AsyncLifecycle(ShellBase[AsyncStream]):
 
         def _resume_streams(self) -> None: ...
 
+        def _streams_idle(self) -> None: ...
+
     # ------------------------------------------------------------------ connection
     async def _announce_disconnect(self) -> None:
         """TCP: send 07h Disconnect and wait for its reply (at most 1 s), so the gripper does not FAST STOP."""
@@ -92,6 +94,30 @@ class AsyncLifecycle(ShellBase[AsyncStream]):
             except WsgError as exc:
                 self._attempt_failed(backoff.attempt, exc)
         return False
+
+    # ------------------------------------------------------------------ streams
+    async def _open_stream(self, stream: AsyncStream, period: float, change_only: bool) -> AsyncStream:
+        """Register ``stream`` and subscribe its command on the device (kept to restore on reconnect)."""
+        cmd = stream.command
+        self._add_stream(stream)
+        try:
+            await self._run(calls.subscribe(cmd, period, change_only))
+        except BaseException:
+            self._remove_stream(stream)
+            raise
+        self._subs[cmd] = (period, change_only)
+        self._resume_streams()
+        return stream
+
+    async def _unsubscribe(self, stream: AsyncStream) -> None:
+        """Forget ``stream``; end the device's subscription with the last stream of its command."""
+        if self._remove_stream(stream) and self._transport is not None:
+            try:
+                await self._run(calls.unsubscribe(stream.command))
+            except WsgError as exc:
+                log.debug("unsubscribe %s: %s", stream.command.name, exc)
+        if not self._streams:
+            self._streams_idle()
 
     # ------------------------------------------------------------------ replies
     async def _result(self, call: Call[T], frame: Frame) -> T:

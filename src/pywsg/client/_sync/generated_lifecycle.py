@@ -43,6 +43,8 @@ class Lifecycle(ShellBase[Stream]):
 
         def _resume_streams(self) -> None: ...
 
+        def _streams_idle(self) -> None: ...
+
     # ------------------------------------------------------------------ connection
     def _announce_disconnect(self) -> None:
         """TCP: send 07h Disconnect and wait for its reply (at most 1 s), so the gripper does not FAST STOP."""
@@ -84,6 +86,30 @@ class Lifecycle(ShellBase[Stream]):
             except WsgError as exc:
                 self._attempt_failed(backoff.attempt, exc)
         return False
+
+    # ------------------------------------------------------------------ streams
+    def _open_stream(self, stream: Stream, period: float, change_only: bool) -> Stream:
+        """Register ``stream`` and subscribe its command on the device (kept to restore on reconnect)."""
+        cmd = stream.command
+        self._add_stream(stream)
+        try:
+            self._run(calls.subscribe(cmd, period, change_only))
+        except BaseException:
+            self._remove_stream(stream)
+            raise
+        self._subs[cmd] = (period, change_only)
+        self._resume_streams()
+        return stream
+
+    def _unsubscribe(self, stream: Stream) -> None:
+        """Forget ``stream``; end the device's subscription with the last stream of its command."""
+        if self._remove_stream(stream) and self._transport is not None:
+            try:
+                self._run(calls.unsubscribe(stream.command))
+            except WsgError as exc:
+                log.debug("unsubscribe %s: %s", stream.command.name, exc)
+        if not self._streams:
+            self._streams_idle()
 
     # ------------------------------------------------------------------ replies
     def _result(self, call: Call[T], frame: Frame) -> T:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from ...errors import ConnectionLostError, WsgError
+from ...errors import ConnectionLostError
 from ...protocol import Frame, FrameParser, SystemFlag, parse_datagram
 from .. import calls, lifetime
 from ..calls import Call
@@ -23,7 +23,6 @@ from ..commlog import RX, TX, frame_log
 from ..core import DEFAULT_MOTION_TIMEOUT, DEFAULT_TIMEOUT, decode_success, frame_from, stream_id
 from ..demux import Waiter
 from ..reconnect import ReconnectPolicy
-from ..shell import log
 from ..types import Sample, State
 from ..url import Endpoint
 from .connect import open_sync
@@ -56,6 +55,7 @@ class Gripper(Commands, Lifecycle):
                     on_connection_lost)
         self._lock = threading.Lock()
         self._cv = threading.Condition(self._lock)  # hot paths enter self._lock directly (C-level)
+        self._state_lock = self._lock
         self._send_lock = threading.Lock()
         self._reading = False
         self._sleepers = 0  # threads waiting on self._cv
@@ -139,6 +139,9 @@ class Gripper(Commands, Lifecycle):
     def _resume_streams(self) -> None:
         if self._streams and not self._reader.is_current():
             self._reader.start()
+
+    def _streams_idle(self) -> None:
+        self._reader.stop()
 
     def _start_reconnecting(self) -> None:
         pass  # on demand: by the next call (_transport_or_raise) or the stream reader
@@ -463,40 +466,7 @@ class Gripper(Commands, Lifecycle):
         """Auto-update stream of ``what`` ("system_state", "gripper_state", "width", "speed", "force"
         or the command ID), at most one packet every ``period`` s (>= 0.01), only on change if
         ``change_only``. ``callback(sample)`` runs on a callback thread and may call the gripper."""
-        cmd = stream_id(what)
-        stream = Stream(self, cmd, maxlen, callback)
-        with self._lock:
-            self._streams.setdefault(cmd, []).append(stream)
-            self._demux.add_stream(cmd, stream)
-        try:
-            self._run(calls.subscribe(cmd, period, change_only))
-        except BaseException:
-            with self._lock:
-                self._demux.remove_stream(cmd, stream)
-                self._streams[cmd].remove(stream)
-            raise
-        self._subs[cmd] = (period, change_only)
-        self._reader.start()
-        return stream
-
-    def _unsubscribe(self, stream: Stream) -> None:
-        cmd = stream.command
-        with self._lock:
-            self._demux.remove_stream(cmd, stream)
-            lst = self._streams.get(cmd, [])
-            if stream in lst:
-                lst.remove(stream)
-            last = not lst
-            if last:
-                self._streams.pop(cmd, None)
-                self._subs.pop(cmd, None)
-        if last and self._transport is not None:
-            try:
-                self._run(calls.unsubscribe(cmd))
-            except WsgError as exc:
-                log.debug("unsubscribe %s: %s", cmd.name, exc)
-        if not self._streams:
-            self._reader.stop()
+        return self._open_stream(Stream(self, stream_id(what), maxlen, callback), period, change_only)
 
     def _callback(self, stream: Stream, sample: Sample) -> None:
         self._callbacks.put(stream, sample)
