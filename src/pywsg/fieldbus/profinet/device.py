@@ -33,7 +33,7 @@ from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
 from .ar import AR, ARState, ConnectionManager, Identity, Listener
 from .dcp import OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
-from .im import FIELDS as IM_FIELDS
+from .im import IMData
 from .rpc import RPC_PORT
 from .rt import CyclicCodec
 from .station import NO_IP, ORDER_ID, IpSuite, PermanentStore, Station
@@ -121,11 +121,8 @@ class ProfinetDevice:
         self.dcp = DcpResponder(self.station, DcpHandlers(self._set_name, self._set_ip, self._signal, self._reset))
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
-        im = self.cm.im.data   # I&M1-4 as the settings file keeps them; a write stores them there again
-        im.values.update({k: self.store.data[k] for _b, fields in IM_FIELDS.values() for k, _n in fields
-                          if k in self.store.data})
-        im.__post_init__()
-        im.save = lambda changed: self.store.save(**changed)
+        # I&M1-4 as the settings file keeps them; a write stores them there again
+        self.cm.im.data = IMData.load(self.store.data, save=lambda changed: self.store.save(**changed))
         self.port = self.cm.pdev.port
         self._lldp: asyncio.TimerHandle | None = None
         self.codec: CyclicCodec | None = None

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import re
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -91,6 +91,12 @@ class IMData:
                     text = value if isinstance(value, str) and len(value) <= size and _visible(value.encode(
                         "ascii", errors="replace")) else ""
                     self.values[key] = text.ljust(size)
+
+    @classmethod
+    def load(cls, stored: Mapping[str, Any], save: Callable[[dict[str, Any]], None] | None = None) -> IMData:
+        """The values a settings file holds (its other keys ignored; a bad value reads as blank)."""
+        keys = {k for _b, fields in FIELDS.values() for k, _n in fields}
+        return cls({k: v for k, v in stored.items() if k in keys}, save)
 
     def field_bytes(self, key: str) -> bytes:
         value = self.values[key]
