@@ -150,7 +150,7 @@ def test_pd_interface_data_real_and_pd_real_data() -> None:
     status, rec = s.read(0, 1, 0xF841)
     kinds = [t for t, _ in b.split(rec)]
     assert status == 0 and kinds == [0x0400, 0x0400]
-    inner = [list(b.split(body[10:]))[0][0] for _t, body in b.split(rec)]
+    inner = [next(b.split(body[10:]))[0] for _t, body in b.split(rec)]
     assert inner == [0x0240, 0x020F]
 
 
