@@ -22,6 +22,7 @@ from typing import Protocol
 
 from . import blocks as b
 from . import rpc
+from .im import Identity as Identity  # re-exported: ConnectionManager takes one
 from .im import IMRecords
 from .pdev import PDevRecords
 from .station import Station
@@ -67,17 +68,6 @@ REAL = (Submodule(0, 1, DAP_MODULE, DAP_SUBMODULE), Submodule(0, 0x8000, DAP_MOD
         Submodule(0, 0x8001, DAP_MODULE, PORT_SUBMODULE),
         Submodule(1, 1, WSG_MODULE, WSG_SUBMODULE, INPUT_LENGTH, OUTPUT_LENGTH))
 REAL_BY_ADDR = {(s.slot, s.subslot): s for s in REAL}
-
-
-@dataclass(frozen=True)
-class Identity:
-    """I&M0 values (IEC 61158-6-10 I&M0 record, AFF0h)."""
-
-    order_id: str
-    serial_number: str
-    hardware_revision: int = 1
-    software_revision: tuple[str, int, int, int] = ("V", 4, 0, 0)
-    revision_counter: int = 0
 
 
 class ARState(enum.Enum):

@@ -30,10 +30,10 @@ from ..controller import FieldbusController
 from ..image import OutputImage
 from . import lldp
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
-from .ar import AR, ARState, ConnectionManager, Identity, Listener
+from .ar import AR, ARState, ConnectionManager, Listener
 from .dcp import OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
-from .im import IMData
+from .im import Identity, IMData
 from .rpc import RPC_PORT
 from .rt import CyclicCodec
 from .station import NO_IP, ORDER_ID, IpSuite, PermanentStore, Station

@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING, Any
 from . import blocks as b
 
 if TYPE_CHECKING:
-    from .ar import AR, Identity
     from .station import Station
 
 IM0, IM1, IM2, IM3, IM4, IM0_FILTER = 0xAFF0, 0xAFF1, 0xAFF2, 0xAFF3, 0xAFF4, 0xF840
@@ -47,6 +46,17 @@ FIELDS: dict[int, tuple[int, tuple[tuple[str, int], ...]]] = {
     IM4: (BLOCK_IM4, (("im4_signature", 54),)),
 }
 _DATE = re.compile(r"\d{4}-(0[1-9]|1[0-2])-(0[1-9]|[12]\d|3[01]) ([01]\d|2[0-3]):[0-5]\d")
+
+
+@dataclass(frozen=True)
+class Identity:
+    """I&M0 values (IEC 61158-6-10 I&M0 record, AFF0h)."""
+
+    order_id: str
+    serial_number: str
+    hardware_revision: int = 1
+    software_revision: tuple[str, int, int, int] = ("V", 4, 0, 0)
+    revision_counter: int = 0
 
 
 def im0(station: Station, ident: Identity) -> bytes:
@@ -152,7 +162,7 @@ class IMRecords:
         self.data = data or IMData()
         self.dap = (dap_module, dap_submodule)
 
-    def read(self, req: b.RecordRequest, ar: AR | None, real: bool) -> bytes | None:
+    def read(self, req: b.RecordRequest, ar: object, real: bool) -> bytes | None:
         """The record, or None when it is not an I&M record (``real``: the address is a real submodule)."""
         if req.index == IM0_FILTER:
             return im0_filter(*self.dap)
@@ -164,7 +174,7 @@ class IMRecords:
             return self.data.record(req.index)
         return None
 
-    def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None:
+    def write(self, req: b.RecordRequest, ar: object, data: bytes) -> int | None:
         """0, a PNIORW ErrorCode1, or None when the index is not an I&M record."""
         if req.index in FIELDS:
             return self.data.write(req.index, data)

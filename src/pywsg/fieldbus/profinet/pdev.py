@@ -38,14 +38,14 @@ import logging
 import struct
 import time
 from collections import deque
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from . import blocks as b
 from .lldp import MAU_100BASE_TXFD, PORT_NAME, Neighbour
 
 if TYPE_CHECKING:
-    from .ar import AR, Submodule
     from .station import Station
 
 log = logging.getLogger(__name__)
@@ -82,6 +82,28 @@ def _pad4(data: bytes, start: int = 6) -> bytes:
 def _name(text: str) -> bytes:
     raw = text.encode("ascii", errors="replace")[:MAX_NAME]
     return bytes([len(raw)]) + raw
+
+
+class RealSubmodule(Protocol):
+    """A submodule of the real configuration (:data:`pywsg.fieldbus.profinet.ar.REAL`)."""
+
+    @property
+    def slot(self) -> int: ...
+    @property
+    def subslot(self) -> int: ...
+    @property
+    def module_ident(self) -> int: ...
+    @property
+    def submodule_ident(self) -> int: ...
+
+
+class ARView(Protocol):
+    """What these records need of an AR (:class:`pywsg.fieldbus.profinet.ar.AR`)."""
+
+    @property
+    def expected(self) -> Mapping[tuple[int, int], b.ExpectedSubmodule]: ...
+    @property
+    def diff(self) -> bytes: ...
 
 
 @dataclass
@@ -178,7 +200,7 @@ def identification(block_type: int, subs: list[tuple[int, int, int, int, int]]) 
 class PDevRecords:
     """PDEV, identification and LogBook records: a record handler of the connection manager."""
 
-    def __init__(self, station: Station, real: tuple[Submodule, ...], port: Port | None = None,
+    def __init__(self, station: Station, real: Sequence[RealSubmodule], port: Port | None = None,
                  logbook: LogBook | None = None, clock: object = time.monotonic) -> None:
         self.station = station
         self.real = real
@@ -215,7 +237,7 @@ class PDevRecords:
         return (self._multiple(INTERFACE, self.interface_data_real())
                 + self._multiple(PORT, self.port_data_real()))
 
-    def _ident(self, index: int, req: b.RecordRequest, ar: AR | None) -> bytes | None:
+    def _ident(self, index: int, req: b.RecordRequest, ar: ARView | None) -> bytes | None:
         def keep(slot: int, subslot: int) -> bool:
             if index in (EXPECTED_SUBSLOT, REAL_SUBSLOT):
                 return (slot, subslot) == (req.slot, req.subslot)
@@ -233,7 +255,7 @@ class PDevRecords:
                 if keep(s.slot, s.subslot)]
         return identification(BLOCK_REAL_IDENT, rows)
 
-    def read(self, req: b.RecordRequest, ar: AR | None, real: bool) -> bytes | None:
+    def read(self, req: b.RecordRequest, ar: ARView | None, real: bool) -> bytes | None:
         """The record, or None when the index is not one of these (or not at this address)."""
         at = (req.slot, req.subslot)
         index = req.index
@@ -259,7 +281,7 @@ class PDevRecords:
         return None
 
     # --- write ------------------------------------------------------------------------------------
-    def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None:
+    def write(self, req: b.RecordRequest, ar: ARView | None, data: bytes) -> int | None:
         """0, a PNIORW ErrorCode1, or None when the index is not a PDEV record."""
         writers = {PD_PORT_DATA_CHECK: (PORT, self._check), PD_PORT_DATA_ADJUST: (PORT, self._adjust),
                    PD_INTERFACE_ADJUST: (INTERFACE, self._interface_adjust)}
