@@ -524,20 +524,20 @@ def startup(iface: str, name: str, device_ip: str) -> None:
     res["homed"] = homed
     jog = CmdFlag.JOG_PLUS if now[0].width_mm < 50 else CmdFlag.JOG_MINUS
     cyc.outputs = OutputImage(jog, speed=2000).pack()        # 20 mm/s
-    time.sleep(0.1)
-    w0 = inputs(w, in_fid, lay)
-    time.sleep(0.4)
-    w1 = inputs(w, in_fid, lay)
-    assert w0 is not None and w1 is not None
-    res["jog_run_mm"] = round(abs(w1[0].width_mm - w0[0].width_mm), 2)
+
+    def travel(settle: float, span: float) -> tuple[float, tuple[InputImage, int, int, float]]:
+        """How far the fingers moved in ``span`` s, after ``settle`` s; the last inputs."""
+        time.sleep(settle)
+        first = inputs(w, in_fid, lay)
+        time.sleep(span)
+        last = inputs(w, in_fid, lay)
+        assert first is not None and last is not None
+        return round(abs(last[0].width_mm - first[0].width_mm), 2), last
+
+    res["jog_run_mm"], _last = travel(0.1, 0.4)
     # ProviderState STOP with JOG still in the image (as a PLC going to STOP leaves it)
     cyc.status = STOP
-    time.sleep(0.2)
-    s0 = inputs(w, in_fid, lay)
-    time.sleep(0.5)
-    s1 = inputs(w, in_fid, lay)
-    assert s0 is not None and s1 is not None
-    res["jog_stop_mm"] = round(abs(s1[0].width_mm - s0[0].width_mm), 2)
+    res["jog_stop_mm"], s1 = travel(0.2, 0.5)
     res["inputs_during_stop"] = {"age_s": round(s1[3], 3), "iops": s1[1]}
     # back to RUN with GOOD data, the image cleared: the AR goes on
     cyc.outputs = bytes(8)

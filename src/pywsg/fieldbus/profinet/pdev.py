@@ -295,13 +295,9 @@ class PDevRecords:
     @staticmethod
     def _outer(data: bytes, block_type: int) -> tuple[int, bytes] | int:
         """(0, the sub-blocks) of a PDPortDataCheck/Adjust block for the port, or an ErrorCode1."""
-        try:
-            blocks = list(b.split(data))
-        except b.BlockError:
+        body = _only_block(data, block_type)
+        if body is None:
             return INVALID_PARAMETER
-        if len(blocks) != 1 or blocks[0][0] != block_type or len(blocks[0][1]) < 6:
-            return INVALID_PARAMETER
-        body = blocks[0][1]
         if struct.unpack_from("!HH", body, 2) != PORT:
             return INVALID_SLOT
         return 0, body[6:]
@@ -311,10 +307,7 @@ class PDevRecords:
         if isinstance(outer, int):
             return outer
         check = PortCheck(raw=data)
-        try:
-            subs = list(b.split(outer[1]))
-        except b.BlockError:
-            return INVALID_PARAMETER
+        subs = _blocks(outer[1])
         if not subs:
             return INVALID_PARAMETER
         for btype, body in subs:
@@ -341,9 +334,8 @@ class PDevRecords:
         outer = self._outer(data, BLOCK_PORT_DATA_ADJUST)
         if isinstance(outer, int):
             return outer
-        try:
-            subs = list(b.split(outer[1]))
-        except b.BlockError:
+        subs = _blocks(outer[1])
+        if subs is None:
             return INVALID_PARAMETER
         values: dict[int, int] = {}
         for btype, body in subs:
@@ -369,18 +361,32 @@ class PDevRecords:
         return 0
 
     def _interface_adjust(self, data: bytes) -> int:
-        try:
-            blocks = list(b.split(data))
-        except b.BlockError:
+        body = _only_block(data, BLOCK_INTERFACE_ADJUST)
+        if body is None:
             return INVALID_PARAMETER
-        if len(blocks) != 1 or blocks[0][0] != BLOCK_INTERFACE_ADJUST or len(blocks[0][1]) < 6:
-            return INVALID_PARAMETER
-        mode, = struct.unpack_from("!I", blocks[0][1], 2)
+        mode, = struct.unpack_from("!I", body, 2)
         if mode & ~1:
             return INVALID_RANGE   # only bit 0 (NameOfDevice) is defined
         self.port.name_of_device = bool(mode & 1)
         self.port.interface_adjust_raw = data
         return 0
+
+
+def _blocks(data: bytes) -> list[tuple[int, bytes]] | None:
+    """The blocks of ``data``, or None when one runs past its end."""
+    try:
+        return list(b.split(data))
+    except b.BlockError:
+        return None
+
+
+def _only_block(data: bytes, block_type: int) -> bytes | None:
+    """The body of ``data`` when it is exactly one block of ``block_type`` with padding and at least 4 bytes
+    after it (slot/subslot or a 32-bit value), else None."""
+    found = _blocks(data)
+    if found is None or len(found) != 1 or found[0][0] != block_type or len(found[0][1]) < 6:
+        return None
+    return found[0][1]
 
 
 def _peers(body: bytes) -> list[tuple[str, str]] | None:
