@@ -13,9 +13,12 @@ from pathlib import Path
 import dpkt
 import pytest
 
+from pywsg.device import ManualClock, VirtualGripper
+from pywsg.fieldbus.controller import FieldbusController
 from pywsg.fieldbus.profinet import blocks as b
 from pywsg.fieldbus.profinet import lldp, rpc
 from pywsg.fieldbus.profinet.ar import ConnectionManager, Identity
+from pywsg.fieldbus.profinet.device import ProfinetDevice
 from pywsg.fieldbus.profinet.ether import Frame, IpStack, parse_frame
 from pywsg.fieldbus.profinet.im import IMData
 from pywsg.fieldbus.profinet.station import PermanentStore
@@ -224,7 +227,7 @@ def test_im0_says_im1_to_im4_are_there_and_the_filter_lists_the_dap() -> None:
     assert struct.unpack_from("!H", im0, len(im0) - 2)[0] == 0b11110   # IM_Supported: I&M1..I&M4
     assert im0[8:28].rstrip() == b"WSG 50"
     _, filt = s.read(0, 1, 0xF840)
-    assert [t for t, _ in b.split(filt)] == [0x0030, 0x0032]
+    assert [t for t, _ in b.split(filt)] == [0x0030, 0x0031, 0x0032]
     for _t, body in b.split(filt):
         assert struct.unpack_from("!HIHHIHHI", body) == (1, 0, 1, 0, 1, 1, 1, 1)
 
@@ -265,6 +268,29 @@ def test_im_values_survive_a_restart_in_the_settings_file(tmp_path: Path) -> Non
     assert bad.record(0xAFF1) == b.header(0x21, b" " * 54) and bad.record(0xAFF4)[6:] == bytes(54)
 
 
+# --- the device: I&M from the settings file, the neighbour in the Fieldbus Monitor -------------------------
+def test_device_reads_im_from_the_settings_file_and_shows_the_neighbour(tmp_path: Path) -> None:
+    """A ProfinetDevice made on ``lo`` (nothing is opened before start()): what a restart finds in the
+    settings file, and the Fieldbus Monitor's LLDP and port-check rows."""
+    path = tmp_path / "settings.interface.json"
+    PermanentStore(path).save(im1_tag_function="left gripper", im1_tag_location="cell 7")
+    gripper = VirtualGripper("wsg50", clock=ManualClock())
+    dev = ProfinetDevice(gripper, "lo", FieldbusController(gripper), station_name="wsg50",
+                         store=PermanentStore(path))
+    assert dev.cm.im.data.record(0xAFF1) == b.header(0x21, b"left gripper".ljust(32) + b"cell 7".ljust(22))
+    assert dev.cm.im.data.write(0xAFF3, b.header(0x23, b"spare".ljust(54))) == 0
+    assert PermanentStore(path).data["im3_descriptor"] == "spare"   # written through to the file
+    assert dev.bus_state()["LLDP neighbour"] == "(none)"
+    dev._frame(lldp.build(PLC, "plc", PLC_IP))   # as the raw socket hands it over
+    assert dev.bus_state()["LLDP neighbour"] == "plc port-001 (02:00:00:00:00:02)"
+    dev.port.check.peer_port, dev.port.check.peer_station = "port-002", "plc"
+    assert dev.bus_state()["Port check"] == "mismatch: neighbour plc/port-001, expected plc/port-002"
+    # the device's own frame: its name, the port ID form a PDInterfaceAdjust chose
+    dev.port.name_of_device = False
+    own = lldp.parse(Frame(b"", MAC, lldp.ETH_P_LLDP, dev._lldp_frame()[14:]), 0)
+    assert own is not None and (own.chassis_id, own.port_id) == ("wsg50", "port-001")
+
+
 # --- the whole exchange through tshark ---------------------------------------------------------------
 @pytest.mark.skipif(shutil.which("tshark") is None, reason="tshark is not installed (scripts/test.sh installs it)")
 def test_tshark_decodes_lldp_pdev_and_im_without_malformed(tmp_path: Path) -> None:
@@ -299,4 +325,4 @@ def test_tshark_decodes_lldp_pdev_and_im_without_malformed(tmp_path: Path) -> No
     blocks = {int(x, 0) for row in rows for x in row[3].split(",") if x}
     # every record block decoded by name: PDPortDataReal ... LogBookData
     assert {0x020F, 0x0240, 0x0400, 0x0020, 0x0021, 0x0022, 0x0023, 0x0024, 0x0030, 0x0032, 0x0012, 0x0013,
-            0x8104, 0x0019, 0x0200, 0x020A, 0x0202, 0x0250} <= blocks
+            0x8104, 0x0019, 0x0200, 0x020A, 0x0202, 0x0250, 0x0031} <= blocks

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 IM0, IM1, IM2, IM3, IM4, IM0_FILTER = 0xAFF0, 0xAFF1, 0xAFF2, 0xAFF3, 0xAFF4, 0xF840
 BLOCK_IM0, BLOCK_IM1, BLOCK_IM2, BLOCK_IM3, BLOCK_IM4 = 0x0020, 0x0021, 0x0022, 0x0023, 0x0024
-BLOCK_FILTER_SUBMODULE, BLOCK_FILTER_DEVICE = 0x0030, 0x0032
+BLOCK_FILTER_SUBMODULE, BLOCK_FILTER_MODULE, BLOCK_FILTER_DEVICE = 0x0030, 0x0031, 0x0032
 #: IM_Supported: I&M1, I&M2, I&M3 and I&M4 are there (bit n: I&Mn).
 IM_SUPPORTED = 0b11110
 #: IM_ProfileSpecificType 0004h with IM_Profile_ID 0000h: a device without an application profile.
@@ -72,10 +72,12 @@ def im0(station: Station, ident: Identity) -> bytes:
 
 
 def im0_filter(dap_module: int, dap_submodule: int) -> bytes:
-    """I&M0FilterData (F840h): the submodules that carry I&M0 (0030h) and the one that stands for the
-    device (0032h) — both the device access point's; the other submodules have none of their own."""
+    """I&M0FilterData (F840h): the submodules that carry I&M0 (0030h), those that stand for their module
+    (0031h) and the one that stands for the device (0032h) — each time the device access point's; the
+    other submodules have no I&M data of their own."""
     body = struct.pack("!HIHHIHHI", 1, 0, 1, IM_CARRIER[0], dap_module, 1, IM_CARRIER[1], dap_submodule)
-    return b.header(BLOCK_FILTER_SUBMODULE, body) + b.header(BLOCK_FILTER_DEVICE, body)
+    return b"".join(b.header(kind, body) for kind in (BLOCK_FILTER_SUBMODULE, BLOCK_FILTER_MODULE,
+                                                       BLOCK_FILTER_DEVICE))
 
 
 def _visible(raw: bytes) -> bool:
