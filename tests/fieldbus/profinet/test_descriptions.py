@@ -205,7 +205,7 @@ def test_gsdml_rule_8_certification_info() -> None:
     cert = _one(".//g:CertificationInfo")
     assert cert.get("ConformanceClass") == "A"          # B needs SNMP, C IRT: neither is implemented
     assert cert.get("NetloadClass") in ("I", "II", "III")
-    assert "ApplicationClass" not in cert.attrib        # no class claimed (an empty token list is no value)
+    assert cert.get("ApplicationClass", "") == ""       # no class claimed (isochronous, safety, ...)
 
 
 def test_gsdml_rule_9_interface_and_port_submodules() -> None:
@@ -218,7 +218,6 @@ def test_gsdml_rule_9_interface_and_port_submodules() -> None:
     assert itf.find("g:ApplicationRelations/g:TimingProperties", NS) is not None
     maus = {int(m.get("Value", "")) for m in port.findall(".//g:MAUTypeItem", NS)}
     assert maus == {lldp.MAU_100BASE_TXFD}   # what LLDP and PDPortDataReal announce
-    assert port.get("CheckMAUTypeSupported") == "true"   # PDPortDataCheck's CheckMAUType is checked
 
 
 def test_gsdml_rule_10_ident_numbers_are_the_devices_real_configuration() -> None:
@@ -268,5 +267,20 @@ def test_gsdml_rule_14_one_identity_string() -> None:
 
 
 def test_gsdml_rule_15_writeable_im_records() -> None:
-    declared = {int(x) for x in _dap().get("Writeable_IM_Records", "").split()}
+    """On the DAP's own submodule (the I&M carrier); I&M0 (and I&M5) are read only, so never listed."""
+    sub = _dap().find("g:VirtualSubmoduleList/g:VirtualSubmoduleItem", NS)
+    assert sub is not None
+    declared = {int(x) for x in sub.get("Writeable_IM_Records", "").split()}
     assert declared == {index - im.IM0 for index in im.FIELDS} == {1, 2, 3, 4}
+    assert "Writeable_IM_Records" not in _dap().attrib
+
+
+def test_gsdml_rule_16_mandatory_since_v2_31_and_timing() -> None:
+    """MultipleWriteSupported and LLDP_NoD_Supported are mandatory "true" from V2.31 on; SendClock lists 32
+    (1 ms) and MinDeviceInterval is a SendClock x ReductionRatio the lists allow."""
+    dap = _dap()
+    assert dap.get("MultipleWriteSupported") == dap.get("LLDP_NoD_Supported") == "true"
+    timing = _one(".//g:InterfaceSubmoduleItem/g:ApplicationRelations/g:TimingProperties")
+    clocks = [int(x) for x in timing.get("SendClock", "32").split()]
+    ratios = [int(x) for x in timing.get("ReductionRatio", "").split()]
+    assert 32 in clocks and int(dap.get("MinDeviceInterval", "")) in {c * r for c in clocks for r in ratios}
