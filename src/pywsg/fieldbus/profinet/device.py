@@ -267,6 +267,8 @@ class ProfinetDevice:
                     self._output_frame(frame.payload)
             return
         if frame.ethertype == lldp.ETH_P_LLDP:
+            if frame.dst != lldp.LLDP_MULTICAST:
+                return   # LLDP goes to the nearest-bridge address only
             neighbour = lldp.parse(frame, time.monotonic())
             if neighbour is not None and neighbour != self.port.neighbour:
                 if self.port.neighbour is None or (neighbour.chassis_id, neighbour.port_id) != (
