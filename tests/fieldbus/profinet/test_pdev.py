@@ -191,6 +191,9 @@ def test_pd_port_data_adjust_peer_to_peer_boundary_stops_lldp() -> None:
     assert s.write(0, 0x8000, 0x8071, b.header(0x0250, b"\0\0" + struct.pack("!I", 0))) == 0
     assert not s.cm.pdev.port.name_of_device
     assert s.write(0, 0x8000, 0x8071, b.header(0x0250, b"\0\0" + struct.pack("!I", 6))) == 0xDF80B700
+    # a PDEV record of a feature the GSDML does not declare (MRP 8052h, NC data check 8070h): invalid index
+    assert s.write(0, 0x8000, 0x8052, bytes(8)) == 0xDF80B000
+    assert s.write(0, 0x8000, 0x8070, bytes(8)) == 0xDF80B000
 
 
 def test_identification_module_diff_and_logbook() -> None:
