@@ -214,6 +214,8 @@ def test_identification_module_diff_and_logbook() -> None:
     assert struct.unpack_from("!HIHHIH", slot1, 6) == (1, 0, 1, 1, 0x10, 1)
     _, sub = s.read(0, 0x8000, 0x8000)
     assert struct.unpack_from("!HI", sub, 22) == (0x8000, 2)
+    _, missing = s.read(0, 0x8002, 0x8000)   # expected, not real: its expected data; the real one: no subslot
+    assert struct.unpack_from("!HI", missing, 22) == (0x8002, 3) and s.read(0, 0x8002, 0x8001)[0] == 0xDE80B200
     # all proper: an empty ModuleDiff; the LogBook has this AR
     ok = Session()
     assert ok.read(0, 1, 0xE002)[1] == b.header(b.MODULE_DIFF, b"\0\0")

@@ -259,8 +259,9 @@ class PDevRecords:
         """The record, or None when the index is not one of these (or not at this address)."""
         at = (req.slot, req.subslot)
         index = req.index
-        if index in (EXPECTED_AR, REAL_AR, REAL_API) or (real and index in (
-                EXPECTED_SUBSLOT, REAL_SUBSLOT, EXPECTED_SLOT, REAL_SLOT)):
+        # what the AR expects is readable also where nothing real is (that is what a controller asks about)
+        if index in (EXPECTED_AR, REAL_AR, REAL_API, EXPECTED_SUBSLOT, EXPECTED_SLOT) or (
+                real and index in (REAL_SUBSLOT, REAL_SLOT)):
             return self._ident(index, req, ar)
         if index == MODULE_DIFF_AR:
             if ar is None:
