@@ -269,6 +269,12 @@ def test_im_values_survive_a_restart_in_the_settings_file(tmp_path: Path) -> Non
     again = IMData.load(PermanentStore(path).data)   # a new process reads the file
     assert again.record(0xAFF1) == data.record(0xAFF1) and again.record(0xAFF4)[6:] == b"\x5a" * 54
     assert PermanentStore(path).name() == "wsg50"   # the other keys stay
+    # the web interface's Command Interface page writes the same file: the I&M keys stay
+    from pywsg.web.interface_page import InterfaceStore
+
+    assert InterfaceStore(path).update({"profinet_name": "wsg-renamed"}) == {}
+    kept = IMData.load(PermanentStore(path).data)
+    assert kept.record(0xAFF1) == data.record(0xAFF1) and PermanentStore(path).name() == "wsg-renamed"
     bad = IMData.load({"im1_tag_function": "x" * 40, "im4_signature": "zz"})
     assert bad.record(0xAFF1) == b.header(0x21, b" " * 54) and bad.record(0xAFF4)[6:] == bytes(54)
 
