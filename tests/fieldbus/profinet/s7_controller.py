@@ -39,7 +39,7 @@ CONTROLLER_IF = uuid.UUID("dea00002-6c97-11d1-8271-00a02442df7d")
 OBJECT = uuid.UUID("dea00000-6c97-11d1-8271-0001000102a2")   # instance 1, device 0001h, vendor 02A2h
 STATION = "plc-s7"
 SCF, RR = 32, 16                 # 16 ms cycle: a Python controller on a loaded machine holds it
-HOLD = 32                        # watchdog / data hold factor: 512 ms
+HOLD = 125                       # watchdog / data hold factor: 2 s (a loaded 2-core machine stalls threads)
 RUN, STOP = 0x35, 0x25           # DataStatus: primary, valid, provider RUN/STOP, station OK
 GOOD = 0x80
 MY_ALARM_REF = 0x0003
@@ -321,7 +321,8 @@ def connect_args(ar: uuid.UUID, session: int, mac: bytes) -> tuple[bytes, Layout
                                          0xFFFFFFFF, HOLD, HOLD, 0xC000) + bytes(6)
                      + struct.pack("!HIH", 1, 0, len(objs) // 6) + objs + struct.pack("!H", len(iocs) // 6) + iocs)
 
-    alarm = block(0x0103, struct.pack("!HHIHHHHHH", 1, 0x8892, 0, 1, 3, MY_ALARM_REF, 200, 0xC000, 0xA000))
+    # RTA timeout 1 s (factor 10), 3 retries: an acknowledgement late by a stalled thread is no lost alarm
+    alarm = block(0x0103, struct.pack("!HHIHHHHHH", 1, 0x8892, 0, 10, 3, MY_ALARM_REF, 200, 0xC000, 0xA000))
     expected = b""
     for slot in (0, 1):
         subs = [s for s in SUBMODULES if s[0] == slot]
@@ -399,9 +400,13 @@ class Alarms:
         self.w.send(self.dst, ETH_PNIO, struct.pack("!HHHBBHHH", 0xFE01, self.ref, MY_ALARM_REF, 0x10 | kind,
                                                     flags, seq, ack, len(pdu)) + pdu, tag=True)
 
-    def pump(self, timeout: float) -> None:
+    def pump(self, timeout: float, alarms: int = -1) -> None:
+        """Answer what comes for ``timeout`` s, or until ``alarms`` alarms have come and all our AlarmAcks
+        are confirmed."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
+            if len(self.got) == alarms and self.acked_by_device == alarms:
+                return
             try:
                 p = self.w.alarms.get(timeout=0.05)
             except queue.Empty:
@@ -504,12 +509,13 @@ def startup(iface: str, name: str, device_ip: str) -> None:
     # a diagnosis alarm: FASTSTOP raised (appears) and acknowledged (STOP/ACK: disappears)
     alarms = Alarms(w, device_mac, device_ref)
     cyc.outputs = OutputImage(CmdFlag.FASTSTOP).pack()
-    alarms.pump(1.5)
+    alarms.pump(10.0, alarms=1)
     cyc.outputs = bytes(8)
     alarms.pump(0.3)
     cyc.outputs = OutputImage(CmdFlag.STOP_ACK).pack()
-    alarms.pump(1.5)
+    alarms.pump(10.0, alarms=2)
     cyc.outputs = bytes(8)
+    alarms.pump(0.3)   # nothing more may come
     res["alarms"] = alarms.got
     res["alarm_acks_confirmed"] = alarms.acked_by_device
 
@@ -543,7 +549,7 @@ def startup(iface: str, name: str, device_ip: str) -> None:
     cyc.outputs = bytes(8)
     cyc.status = RUN
     before = w.input_frames
-    time.sleep(0.5)
+    time.sleep(1.0)
     back = inputs(w, in_fid, lay)
     res["after_run"] = {"frames": w.input_frames - before, "iops": None if back is None else back[1],
                         "state": None if back is None else str(back[0].state)}

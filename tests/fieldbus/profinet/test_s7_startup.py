@@ -61,7 +61,7 @@ def test_s7_style_startup_from_dcp_to_release(wire: Wire, tmp_path: Path) -> Non
     assert isinstance(r["jog_run_mm"], float) and r["jog_run_mm"] > 1.0, r
     # back in RUN after STOP: the AR goes on (frames, IOPS GOOD); Release: done, and the device stops sending
     after = r["after_run"]
-    assert isinstance(after, dict) and after["frames"] > 10 and after["iops"] == 0x80, after
+    assert isinstance(after, dict) and after["frames"] > 5 and after["iops"] == 0x80, after   # ~60 in 1 s
     assert r["release"] == {"status": 0, "command": 0x0008}
     assert r["frames_after_release"] == 0
     cap.stop()
