@@ -225,6 +225,31 @@ def test_identification_module_diff_and_logbook() -> None:
     assert ok.ar.uuid.bytes in book and struct.pack("!I", 0xCF81FD00) in book
 
 
+def test_garbage_record_writes_get_an_answer_and_change_nothing_they_should_not() -> None:
+    """3,000 corrupted PDEV and I&M writes: each answered with OK or a PNIORW error, never an exception."""
+    s = Session()
+    pdev, im_data = s.cm.pdev, s.cm.im
+    good = {0x802B: _check(), 0x802F: _adjust(_boundary(0x0209, 1)),
+            0x8071: b.header(0x0250, b"\0\0" + struct.pack("!I", 1)),
+            0xAFF1: b.header(0x21, b" " * 54), 0xAFF3: b.header(0x23, b" " * 54)}
+    where = {0x802B: 0x8001, 0x802F: 0x8001, 0x8071: 0x8000, 0xAFF1: 1, 0xAFF3: 1}
+    rnd = random.Random(7)
+    codes = set()
+    for _ in range(3000):
+        index = rnd.choice(list(good))
+        data = bytearray(good[index])
+        for _ in range(rnd.randrange(1, 4)):
+            data[rnd.randrange(len(data))] = rnd.randrange(256)
+        data = data[:rnd.randrange(len(data) + 1)] if rnd.random() < 0.3 else data
+        req = b.RecordRequest(1, s.ar.uuid, 0, 0, where[index], index, len(data))
+        for handler in (pdev, im_data):
+            code = handler.write(req, s.ar, bytes(data))
+            assert code is None or code in (0, 0xB1, 0xB2, 0xB6, 0xB7, 0xB8)
+            codes.add(code)
+        assert pdev.read(b.RecordRequest(1, s.ar.uuid, 0, 0, 0x8001, 0x802A, 4096), s.ar, True)
+    assert {0, 0xB8} <= codes   # both kinds of answer were exercised
+
+
 # --- I&M ----------------------------------------------------------------------------------------------
 def test_im0_says_im1_to_im4_are_there_and_the_filter_lists_the_dap() -> None:
     s = Session()
