@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from pywsg.fieldbus import descriptions
+
 from .conftest import DEVICE_IP, HERE, STATION, Wire
 from .test_wire import Capture
 
@@ -76,6 +78,12 @@ def test_s7_style_startup_from_dcp_to_release(wire: Wire, tmp_path: Path) -> Non
     rows = [line.split("\t") for line in q.stdout.splitlines()]
     flagged = [row for row in rows if row[1] or any(int(x, 0) >= 0x00800000 for x in row[2].split(",") if x)]
     assert flagged == [] and sum("lldp" in row[3] for row in rows) >= 2
+    # Wireshark reads the GSDML as `wsg gsd` writes it (003 §3.1's name, .gsdml): the cyclic frames' modules
+    # get the GSDML's names
+    descriptions.write_all(tmp_path / "gsd")
+    q = subprocess.run(["tshark", "-r", str(cap.path), "-o", f"pn_io.pnio_ps_networkpath:{tmp_path / 'gsd'}",
+                        "-Y", "pn_rt && pn_io.ioxs", "-V", "-c", "400"], capture_output=True, text=True, timeout=60)
+    assert 'ModuleName: "WSG register space"' in q.stdout, q.stdout[-2000:]
 
     # I&M1 survives a restart (the settings file): a new process, found and addressed by name again
     sim = wire.sim("--settings", str(settings), ip=None)
