@@ -349,6 +349,13 @@ class Cyclic:
         self.sent = 0
         threading.Thread(target=self._run, daemon=True).start()
 
+    def put(self, outputs: bytes, frames: int = 5) -> None:
+        """New outputs, returning once ``frames`` frames carried them (a stalled sender thread must not
+        let an image pass unseen: the device judges edges between the images it receives)."""
+        self.outputs = outputs
+        sent = self.sent
+        wait_for(lambda: self.sent >= sent + frames, 10.0)
+
     def _run(self) -> None:
         period = SCF * RR * 31.25e-6
         nxt = time.monotonic()
@@ -395,6 +402,7 @@ class Alarms:
         self.send_seq, self.send_seq_o = 0xFFFF, 0xFFFE
         self.got: list[dict[str, Any]] = []
         self.acked_by_device = 0
+        self.last_seq: int | None = None   # the device's last DATA: a retransmission of it is no new alarm
 
     def _rta(self, kind: int, flags: int, seq: int, ack: int, pdu: bytes) -> None:
         self.w.send(self.dst, ETH_PNIO, struct.pack("!HHHBBHHH", 0xFE01, self.ref, MY_ALARM_REF, 0x10 | kind,
@@ -418,6 +426,10 @@ class Alarms:
                 continue
             if kind != 1:
                 continue
+            if seq == self.last_seq:   # our ACK came late: the device sent it again; confirm it again
+                self._rta(3, 0x01, self.send_seq_o, seq, b"")
+                continue
+            self.last_seq = seq
             pdu = p[14:14 + n]
             btype, = struct.unpack_from("!H", pdu)
             atype, api, slot, sub, _mod, _smod, spec = struct.unpack_from("!HIHHIIH", pdu, 6)
@@ -508,19 +520,18 @@ def startup(iface: str, name: str, device_ip: str) -> None:
 
     # a diagnosis alarm: FASTSTOP raised (appears) and acknowledged (STOP/ACK: disappears)
     alarms = Alarms(w, device_mac, device_ref)
-    cyc.outputs = OutputImage(CmdFlag.FASTSTOP).pack()
+    cyc.put(OutputImage(CmdFlag.FASTSTOP).pack())
     alarms.pump(10.0, alarms=1)
-    cyc.outputs = bytes(8)
-    alarms.pump(0.3)
-    cyc.outputs = OutputImage(CmdFlag.STOP_ACK).pack()
+    cyc.put(bytes(8))
+    cyc.put(OutputImage(CmdFlag.STOP_ACK).pack())
     alarms.pump(10.0, alarms=2)
-    cyc.outputs = bytes(8)
+    cyc.put(bytes(8))
     alarms.pump(0.3)   # nothing more may come
     res["alarms"] = alarms.got
     res["alarm_acks_confirmed"] = alarms.acked_by_device
 
     # cyclic data: HOMING, then JOG with the provider in RUN
-    cyc.outputs = OutputImage(CmdFlag.HOMING).pack()
+    cyc.put(OutputImage(CmdFlag.HOMING).pack())
     homed = wait_for(lambda: (i := inputs(w, in_fid, lay)) is not None and bool(i[0].sysstate & 1)
                      and i[0].state is not None and i[0].state.name == "IDLE", 15.0)
     cyc.outputs = bytes(8)
