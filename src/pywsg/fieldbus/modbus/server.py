@@ -68,6 +68,13 @@ MAX_QUEUED = 64
 #: (fuzz F1). We cut every complete ADU at once, so the buffer holds at most one partial ADU
 #: (< 260 bytes) plus one read (asyncio reads at most 256 KiB): this limit is never reached.
 RECV_BUFFER_LIMIT = 1 << 20
+#: Seconds an ADU may take to arrive whole, from its first byte. A master sends a request in one TCP
+#: segment (it is at most 260 bytes); a peer trickling one byte every few seconds kept a connection
+#: slot forever, since the idle timeout only sees silence (32 such peers locked every PLC out).
+ADU_DEADLINE = 2.0
+#: One peer address may hold at most this share of the connection cap (but at least one): the rest
+#: stay for other masters, so one host (a misbehaving HMI, a scanner) cannot lock every PLC out.
+PEER_SHARE = 0.75
 
 
 #: Size of the table each function code addresses (coils, discrete inputs, holding / input registers).
@@ -217,6 +224,23 @@ class _Connection(ServerRequestHandler):
         self._paused = False
         self._closing = False   # an unframeable ADU came: answer what is queued, then close
         self._buf = bytearray()  # received, not yet framed (at most one read plus a partial ADU)
+        self._partial: asyncio.TimerHandle | None = None  # the deadline of the partial ADU in _buf
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        super().connection_made(transport)
+        listener = getattr(self, "listener", None)
+        peer = _host(transport)
+        limit = getattr(listener, "peer_limit", None)
+        if listener is None or peer is None or limit is None:
+            return
+        same = sum(1 for c in list(listener.active_connections.values())
+                   if c is not self and c.transport is not None and _host(c.transport) == peer)
+        if same >= limit:
+            listener.refused_peers += 1
+            if listener.refused_peers % 100 == 1:
+                log.warning("Modbus/TCP: connection from %s refused: it holds %d of the %d a peer may "
+                            "(%d refused so far)", peer, same, limit, listener.refused_peers)
+            self.close()
 
     def data_received(self, data: bytes) -> None:
         """Our own buffer: pymodbus' ``send()`` empties its receive buffer on every reply, which cut a
@@ -254,10 +278,30 @@ class _Connection(ServerRequestHandler):
                 continue
             self._submit(tid, frame[0], frame[1:])
         del buf[:pos]
+        if pos and self._partial is not None:  # an ADU completed: the deadline was for it
+            self._partial.cancel()
+            self._partial = None
+        if buf and self._partial is None and len(self._queue) < MAX_QUEUED:
+            self._partial = asyncio.get_running_loop().call_later(ADU_DEADLINE, self._too_slow)
         backlog = len(self._queue) >= MAX_QUEUED or len(buf) > 6 + MAX_MBAP_LENGTH
         if backlog and not self._paused:
             self._paused = True
             self._reading(False)
+
+    def _too_slow(self) -> None:
+        """The partial ADU missed :data:`ADU_DEADLINE`: answer what is queued, then close."""
+        self._partial = None
+        if self._buf and not self._closing:
+            log.info("Modbus/TCP: an ADU was not complete %.0f s after its first byte; closing the connection",
+                     ADU_DEADLINE)
+            self._buf.clear()
+            self._close_when_answered()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self._partial is not None:
+            self._partial.cancel()
+            self._partial = None
+        super().connection_lost(exc)
 
     def _submit(self, tid: int, unit: int, pdu: bytes) -> None:
         request: ModbusPDU | None = None
@@ -314,8 +358,18 @@ class _Connection(ServerRequestHandler):
                 transport.pause_reading()
 
 
+def _host(transport: Any) -> str | None:
+    """The peer's address (without port) of a connection's transport."""
+    peer = transport.get_extra_info("peername") if transport is not None else None
+    return str(peer[0]) if isinstance(peer, tuple) and peer else None
+
+
 class _Server(ModbusTcpServer):
     """pymodbus' TCP server with our connection class."""
+
+    peer_limit: int | None = None
+    """Connections one peer address may hold (:data:`PEER_SHARE` of the cap); None: no limit."""
+    refused_peers = 0
 
     def callback_new_connection(self) -> _Connection:
         return _Connection(self)
@@ -389,12 +443,15 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
     Runs on the current event loop; the gripper must be polled by a runner (e.g.
     ``pywsg.server.DeviceRunner``) so motions finish. Raises OSError if the port cannot be bound.
     At most ``max_connections`` masters at a time; more are refused (``pywsg.server.conncap``); one
-    sending nothing for ``idle_timeout`` s is closed (None: never).
+    sending nothing for ``idle_timeout`` s is closed (None: never), and so is one whose request is not
+    whole :data:`ADU_DEADLINE` s after its first byte. One peer address holds at most
+    :data:`PEER_SHARE` of ``max_connections`` (at least one) so other masters always find a slot.
     """
     owns = controller is None
     ctl = controller or FieldbusController(gripper)
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
+    server.peer_limit = max(1, int(max_connections * PEER_SHARE))
     cap_modbus_server(server, max_connections, idle_timeout)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
