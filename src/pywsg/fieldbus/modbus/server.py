@@ -140,6 +140,33 @@ def _check_value(pdu: bytes) -> ExcCodes | None:
     return None
 
 
+_READ_FCS = frozenset({_FC_READ_COILS, _FC_READ_DI, _FC_READ_HR, _FC_READ_IR})
+
+
+@dataclass(frozen=True)
+class _Read:
+    """A checked read request (FC 1-4), answered from the controller without pymodbus' request machinery:
+    at ~35 µs a request that machinery made 1 MiB of pipelined FC4 reads cost 3.3 s of CPU."""
+
+    tid: int
+    unit: int
+    pdu: bytes
+
+
+def read_reply(controller: FieldbusController, pdu: bytes) -> bytes:
+    """The reply PDU to a read request ``pdu`` that :func:`check_pdu` passed (Modbus Application Protocol
+    §6.1-6.4: function code, byte count, then registers big-endian or bits packed LSB first)."""
+    fc = pdu[0]
+    start, count = pdu[1] << 8 | pdu[2], pdu[3] << 8 | pdu[4]
+    if fc in (_FC_READ_HR, _FC_READ_IR):
+        regs = controller.output_image.registers() if fc == _FC_READ_HR else controller.input_image().registers()
+        return struct.pack(f">BB{count}H", fc, 2 * count, *regs[start:start + count])
+    bits = controller.output_image.coils() if fc == _FC_READ_COILS else controller.input_image().discrete_inputs()
+    chosen = bits[start:start + count]
+    packed = bytes(int_of(chosen[i:i + 8]) for i in range(0, count, 8))
+    return bytes((fc, len(packed))) + packed
+
+
 def _words(bits: list[bool]) -> list[int]:
     """Bits packed 16 per register, bit 0 first (pymodbus' bit-block layout)."""
     return [int_of(bits[i:i + 16]) for i in range(0, len(bits), 16)]
@@ -219,7 +246,7 @@ class _Connection(ServerRequestHandler):
     def __init__(self, owner: ModbusTcpServer) -> None:
         super().__init__(owner, None, None, None)  # type: ignore[no-untyped-call]
         self.max_buffer_size = RECV_BUFFER_LIMIT
-        self._queue: deque[ModbusPDU] = deque()
+        self._queue: deque[ModbusPDU | _Read] = deque()
         self._worker: asyncio.Task[None] | None = None
         self._paused = False
         self._closing = False   # an unframeable ADU came: answer what is queued, then close
@@ -304,15 +331,18 @@ class _Connection(ServerRequestHandler):
         super().connection_lost(exc)
 
     def _submit(self, tid: int, unit: int, pdu: bytes) -> None:
-        request: ModbusPDU | None = None
+        request: ModbusPDU | _Read | None = None
         code = check_pdu(pdu)
-        if code is None:
+        if code is None and pdu[0] in _READ_FCS:
+            request = _Read(tid, unit, pdu)
+        elif code is None:
             request = self.framer.decoder.decode(pdu)
             if request is None:
                 code = ExcCodes.ILLEGAL_FUNCTION
         if request is None:
             request = ExceptionResponse(pdu[0] & 0x7F, int(code or ExcCodes.ILLEGAL_FUNCTION), unit, tid)
-        request.dev_id, request.transaction_id = unit, tid
+        if not isinstance(request, _Read):
+            request.dev_id, request.transaction_id = unit, tid
         self._queue.append(request)
         if self._worker is None or self._worker.done():
             self._worker = asyncio.get_running_loop().create_task(self._drain())
@@ -326,18 +356,35 @@ class _Connection(ServerRequestHandler):
 
     async def _drain(self) -> None:
         """Execute queued requests one by one, so replies leave in request order."""
+        adapter: FieldbusModbusAdapter = self.server.adapter
+        replies = bytearray()   # read replies of this loop turn, written together
+        cache: dict[bytes, bytes] = {}  # read PDU -> reply PDU, within one turn (the images cannot change)
         try:
             n = 0
             while self._queue:
                 request = self._queue.popleft()
-                if isinstance(request, ExceptionResponse):
-                    self.server_send(request, None)  # type: ignore[no-untyped-call]
+                if isinstance(request, _Read):
+                    reply = cache.get(request.pdu)
+                    if reply is None:
+                        reply = cache[request.pdu] = read_reply(adapter.controller, request.pdu)
+                    adapter.requests += 1
+                    replies += struct.pack(">HHHB", request.tid, 0, len(reply) + 1, request.unit) + reply
+                    n += 1
+                    if n % 256 == 0:
+                        self._flush(replies)
+                        cache.clear()
+                        await asyncio.sleep(0)  # other clients get a turn during a long pipelined read
                 else:
-                    self.last_pdu, self.last_addr = request, None
-                    await self.handle_request()  # type: ignore[no-untyped-call]
-                n += 1
-                if n % 16 == 0:
-                    await asyncio.sleep(0)  # other clients get a turn during a long pipelined write
+                    self._flush(replies)
+                    cache.clear()
+                    if isinstance(request, ExceptionResponse):
+                        self.server_send(request, None)  # type: ignore[no-untyped-call]
+                    else:
+                        self.last_pdu, self.last_addr = request, None
+                        await self.handle_request()  # type: ignore[no-untyped-call]
+                    n += 1
+                    if n % 16 == 0:
+                        await asyncio.sleep(0)  # other clients get a turn during a long pipelined write
                 if not self._closing and len(self._queue) < MAX_QUEUED // 2:
                     if self._buf:
                         self._cut()  # buffered ADUs of a long write, before reading more
@@ -345,8 +392,17 @@ class _Connection(ServerRequestHandler):
                         self._paused = False
                         self._reading(True)
         finally:
+            self._flush(replies)
             if self._closing:
                 self.close()
+
+    def _flush(self, replies: bytearray) -> None:
+        """Write the read replies gathered so far, in request order, before anything else is answered."""
+        if replies:
+            transport = self.transport
+            if transport is not None and not transport.is_closing():
+                transport.write(bytes(replies))  # type: ignore[attr-defined]
+            replies.clear()
 
     def _reading(self, on: bool) -> None:
         """Pause / resume reading the socket (back-pressure while requests are queued)."""
@@ -367,6 +423,7 @@ def _host(transport: Any) -> str | None:
 class _Server(ModbusTcpServer):
     """pymodbus' TCP server with our connection class."""
 
+    adapter: FieldbusModbusAdapter
     peer_limit: int | None = None
     """Connections one peer address may hold (:data:`PEER_SHARE` of the cap); None: no limit."""
     refused_peers = 0
@@ -452,6 +509,7 @@ async def serve_modbus(gripper: Any, host: str = "0.0.0.0", port: int = STANDARD
     adapter = FieldbusModbusAdapter(ctl)
     server = _Server(adapter.device(), address=(host, port))
     server.peer_limit = max(1, int(max_connections * PEER_SHARE))
+    server.adapter = adapter
     cap_modbus_server(server, max_connections, idle_timeout)
     # Bind ourselves first so a busy port raises OSError (pymodbus only logs and returns False).
     if not await server.listen():
