@@ -1,10 +1,14 @@
 """control_msgs/action/GripperCommand on the driver: ``position`` is the gap between the fingers in
-metres, ``max_effort`` the grip force in N (0: the ``force_limit`` parameter, or the gripper's own).
+metres, ``max_effort`` the grip force in N.
 
-A goal narrower than the current opening grips (25h Grip Part, 000 §3.2.6: the position is the part's
-nominal width), a wider one moves (21h) or, while a part is held, releases (26h). The result comes
-from the gripper state at the end (:func:`~pywsg.ros.convert.outcome`): HOLDING is stalled at the
-part, NO_PART is not reached. A cancel stops the fingers (22h Stop)."""
+- ``max_effort`` > 0 and a goal narrower than the opening: grip (25h Grip Part with that force,
+  000 §3.2.6; the position is the part's nominal width);
+- a goal wider than the opening while a part is held: release (26h);
+- otherwise: pre-position (21h, stopping on a block), a position goal without force control.
+
+The result comes from the gripper state at the end (:func:`~pywsg.ros.convert.outcome`): HOLDING is
+stalled at the part, NO_PART is not reached; a blocked pre-position is stalled and aborted. A cancel
+stops the fingers (22h Stop)."""
 
 from __future__ import annotations
 
@@ -15,7 +19,7 @@ from control_msgs.action import GripperCommand
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 
-from ..errors import AbortedError, WsgError
+from ..errors import AbortedError, AxisBlockedError, WsgError
 from ..protocol import GripperState
 from . import convert
 
@@ -75,16 +79,15 @@ class GripperCommandServer:
             return self._result()
         command = goal.request.command
         width = convert.to_mm(command.position)
-        force = command.max_effort if command.max_effort > 0 else (s.force_limit or None)
         now = node.live.width
         tolerance = convert.to_mm(s.goal_tolerance)
         try:
-            if width < now - tolerance:
-                motion = g.grip(width, s.speed, force=force, wait=False)
-            elif node.live.gripper_state == GripperState.HOLDING:
+            if command.max_effort > 0 and width < now - tolerance:
+                motion = g.grip(width, s.speed, force=command.max_effort, wait=False)
+            elif node.live.gripper_state == GripperState.HOLDING and width > now + tolerance:
                 motion = g.release(width, s.speed, wait=False)
             else:
-                motion = g.move(width, s.speed, wait=False)
+                motion = g.move(width, s.speed, stop_on_block=True, wait=False)
         except WsgError as exc:
             node.note_error(exc)
             goal.abort()
@@ -106,7 +109,7 @@ class GripperCommandServer:
             motion.wait(0)
         except WsgError as exc:
             error = exc
-            if not isinstance(exc, AbortedError):
+            if not isinstance(exc, AbortedError | AxisBlockedError):
                 node.note_error(exc)
         state = self._final_state()
         result = self._result()
@@ -120,6 +123,8 @@ class GripperCommandServer:
         if error is None and state is None:  # no gripper state came: the motion's own word
             out = convert.Outcome(True, True, False)
         result.reached_goal, result.stalled = out.reached_goal, out.stalled
+        if isinstance(error, AxisBlockedError):  # a position goal ran into something
+            result.reached_goal, result.stalled = False, True
         if out.succeeded and error is None:
             goal.succeed()
         else:

@@ -125,7 +125,7 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
         g.connect()
         self.gripper = g
         info = g.info()
-        self.hardware_id = f"{info.type} #{info.serial_number}"
+        self.hardware_id = f"WSG type {int(info.type)}, serial number {info.serial_number}"
         self.stroke = g.limits().stroke
         if s.acceleration > 0:
             g.set_acceleration(s.acceleration)

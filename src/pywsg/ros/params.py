@@ -46,10 +46,9 @@ _DESCRIPTIONS: dict[str, tuple[str, tuple[float, float] | None]] = {
     "feedback_rate": ("Hz of GripperCommand feedback while a goal runs", (1.0, 100.0)),
     "speed": ("mm/s of the fingers for GripperCommand goals", (0.1, 1000.0)),
     "acceleration": ("mm/s² set on the gripper at configure (30h); 0 leaves the gripper's own", (0.0, 20000.0)),
-    "force_limit": ("N: grip force of a GripperCommand goal whose max_effort is 0 (32h); 0 leaves the gripper's own",
-                    (0.0, 2000.0)),
-    "goal_tolerance": ("m: a goal within this of the current opening counts as reached; a smaller opening grips "
-                       "(25h), a larger one moves (21h) or releases (26h)", (0.0, 0.01)),
+    "force_limit": ("N: the gripper's grip force limit, set at configure (32h; the legacy grasp uses it); 0 leaves "
+                    "the gripper's own", (0.0, 2000.0)),
+    "goal_tolerance": ("m: a goal closer than this to the opening neither grips nor releases", (0.0, 0.01)),
     "joint_names": ("the two finger joints of joint_states (left, right)", None),
     "frame_id": ("frame_id of joint_states", None),
     "reconnect": ("reconnect by itself after a lost connection", None),

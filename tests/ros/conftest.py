@@ -1,0 +1,28 @@
+"""Fixtures of the ROS tests: one rig (sim, node process, client process) per module, shared by its tests."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from .rig import READY, Rig, shm_entries
+
+
+def open_rig(tmp: Path, **kw: object) -> Iterator[Rig]:
+    """Body of a module's ``rig`` fixture: started, and at the end stopped with the checks every module
+    shares: the node exits 0 on SIGTERM, the gripper is left without FAST STOP (released with its
+    disconnect announcement), no process and no Fast DDS shared-memory file is left."""
+    if not READY.exists():
+        pytest.skip(f"the ROS 2 test environment is not built: run scripts/ros-env.sh (looked for {READY})")
+    rig = Rig(tmp, **kw).start()  # type: ignore[arg-type]
+    node, client = rig.node, rig.client
+    try:
+        yield rig
+    finally:
+        status = rig.close()
+    assert status == 0, rig.log_tail()
+    assert node is not None and node.poll() is not None and client is not None and client.poll() is not None
+    assert not rig.world_after["fast_stop"], "the node left without announcing its disconnect (07h)"
+    assert shm_entries() <= rig.shm_before

@@ -1,0 +1,193 @@
+"""The ROS test rig: a virtual WSG (``wsg sim``'s server, in this process, with its world API), the
+node as ``wsg ros`` in a process of the ROS venv, and a second rclpy process as the client
+(tests/ros/rosclient.py), all on loopback in a ROS domain of their own.
+
+The ROS venv is the one scripts/ros-env.sh builds (.venv-ros; ``PYWSG_ROS_VENV`` overrides); without it
+the tests skip, saying so."""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pywsg.testing import SimThread
+
+ROOT = Path(__file__).resolve().parents[2]
+VENV = Path(os.environ.get("PYWSG_ROS_VENV", ROOT / ".venv-ros"))
+READY = VENV / "pywsg-ros-ready"
+CLIENT = Path(__file__).with_name("rosclient.py")
+
+needs_ros = pytest.mark.skipif(
+    not READY.exists(), reason=f"the ROS 2 test environment is not built: run scripts/ros-env.sh (looked for {READY})")
+
+NODE = "wsg_gripper"
+LEGACY = "wsg_50_driver"
+#: s to wait for the first answer of a new process (discovery, the first service call: ~3 s on a loaded machine)
+FIRST = 60.0
+
+
+def shm_entries() -> set[str]:
+    """Fast DDS's shared-memory files in /dev/shm (segments, port locks, semaphores)."""
+    try:
+        return {n for n in os.listdir("/dev/shm") if "fastrtps" in n or "fastdds" in n or "fast_datasharing" in n}
+    except FileNotFoundError:
+        return set()
+
+
+def ros_env(log_dir: Path, domain: int) -> dict[str, str]:
+    """The environment of the ROS processes: their own domain, discovery confined to this host."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST", "COV_", "VIRTUAL_ENV"))}
+    env.pop("PYTHONPATH", None)
+    env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_LOG_DIR=str(log_dir), PYTHONUNBUFFERED="1",
+               # UDP on loopback only: Fast DDS's shared-memory transport would leave segments in /dev/shm
+               # behind a process that dies; no test needs it
+               FASTDDS_BUILTIN_TRANSPORTS="UDPv4", RCUTILS_COLORIZED_OUTPUT="0")
+    return env
+
+
+_domains = iter(range(1, 1000))
+
+
+def next_domain() -> int:
+    """A ROS domain for this worker's next rig (workers differ by pid; 1..100, inside Fast DDS's port range)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    base = int(worker[2:]) if worker[2:].isdigit() else 0
+    return 1 + (base * 17 + os.getpid() + next(_domains) * 3) % 100
+
+
+class Lines:
+    """A process's stdout, line by line, read on a thread (so a wait can time out)."""
+
+    def __init__(self, proc: subprocess.Popen[str]) -> None:
+        self.q: queue.Queue[str | None] = queue.Queue()
+        self.seen: list[str] = []
+        assert proc.stdout is not None
+        out = proc.stdout
+
+        def pump() -> None:
+            for line in out:
+                self.q.put(line)
+            self.q.put(None)
+        threading.Thread(target=pump, daemon=True).start()
+
+    def get(self, timeout: float) -> str:
+        try:
+            line = self.q.get(timeout=timeout)
+        except queue.Empty:
+            raise TimeoutError(f"no line within {timeout} s; seen: {self.seen[-5:]}") from None
+        if line is None:
+            raise EOFError(f"the process ended; its last lines: {self.seen[-20:]}")
+        self.seen.append(line)
+        return line
+
+
+class Rig:
+    """Sim + node process + client process; ``rig.call(op, **kw)`` asks the client (see rosclient.py)."""
+
+    def __init__(self, tmp: Path, *, params: dict[str, Any] | None = None, autostart: bool = True) -> None:
+        self.tmp = tmp
+        self.shm_before = shm_entries()
+        self.sim = SimThread(udp_port=None).start()
+        self.world = self.sim.world
+        self.domain = next_domain()
+        self.env = ros_env(tmp, self.domain)
+        self.node: subprocess.Popen[str] | None = None
+        self.client: subprocess.Popen[str] | None = None
+        self.node_log = tmp / "node.log"
+        self.params = {"speed": 400.0, "joint_state_rate": 50.0, "diagnostics_rate": 5.0, **(params or {})}
+        self.autostart = autostart
+        self._out: Lines | None = None
+        self.world_after: dict[str, Any] = {}
+
+    def start(self) -> Rig:
+        try:
+            self.start_node()
+            self.client = subprocess.Popen(
+                [str(VENV / "bin" / "python"), str(CLIENT), f"/{NODE}", LEGACY], env=self.env, cwd=self.tmp,
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=(self.tmp / "client.log").open("w"), text=True)
+            self._out = Lines(self.client)
+            assert json.loads(self._out.get(FIRST))["ready"]
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def start_node(self, **params: Any) -> None:
+        ros_args = ["--ros-args", "--log-level", "info"]
+        for k, v in {**self.params, "autostart": self.autostart, **params}.items():
+            ros_args += ["-p", f"{k}:={json.dumps(v) if not isinstance(v, str) else v}"]
+        self.node = subprocess.Popen(
+            [str(VENV / "bin" / "wsg"), "ros", "--url", self.sim.url, "--name", NODE, *ros_args], env=self.env,
+            cwd=self.tmp, stdin=subprocess.DEVNULL, stdout=self.node_log.open("a"), stderr=subprocess.STDOUT,
+            text=True)
+
+    def call(self, op: str, timeout: float = FIRST, **kw: Any) -> dict[str, Any]:
+        assert self.client is not None and self.client.stdin is not None and self._out is not None
+        self.client.stdin.write(json.dumps({"op": op, **kw}) + "\n")
+        self.client.stdin.flush()
+        out: dict[str, Any] = json.loads(self._out.get(timeout))
+        if not out.pop("ok"):
+            raise AssertionError(f"{op}: {out['error']}\n{out.get('trace', '')}\nnode log:\n{self.log_tail()}")
+        return out
+
+    def log_tail(self, n: int = 30) -> str:
+        try:
+            return "\n".join(self.node_log.read_text().splitlines()[-n:])
+        except OSError:
+            return ""
+
+    def stop_node(self, timeout: float = 20.0) -> int:
+        """SIGTERM the node (as a launch system does) and wait: its exit status."""
+        node, self.node = self.node, None
+        if node is None:
+            return 0
+        if node.poll() is None:
+            node.send_signal(signal.SIGTERM)
+        try:
+            return node.wait(timeout)
+        except subprocess.TimeoutExpired:
+            node.kill()
+            node.wait(5)
+            return -9
+
+    def close(self) -> int:
+        """Stop both processes and the sim; the node's exit status."""
+        if self.client is not None:
+            client, self.client = self.client, None
+            try:
+                assert client.stdin is not None
+                client.stdin.write(json.dumps({"op": "quit"}) + "\n")
+                client.stdin.close()
+                client.wait(15)
+            except (OSError, subprocess.TimeoutExpired):
+                client.kill()
+                client.wait(5)
+        status = self.stop_node()
+        self.world_after = self.world.state()
+        self.sim.stop()
+        return status
+
+    def sessions(self) -> int:
+        """TCP connections the sim serves now."""
+        tcp = self.sim.g.tcp
+        assert tcp is not None
+        return self.sim.call(lambda: len(tcp.connections))
+
+
+def wait_until(predicate: Any, timeout: float = 15.0, step: float = 0.02) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(step)
+    return bool(predicate())
