@@ -83,15 +83,16 @@ class Client(Node):
             self.statuses.append((time.monotonic(), d))
 
     # -- requests -----------------------------------------------------------------------------
-    def op_wait(self, timeout: float = 30.0, legacy: bool = True) -> dict[str, Any]:
+    def op_wait(self, timeout: float = 30.0, configured: bool = True) -> dict[str, Any]:
+        """Wait for the node's services (``configured``: also those configure makes) and its action."""
         end = time.monotonic() + timeout
-        clients = [*self.triggers.values(), self.change_state, self.get_state, self.set_params]
-        if legacy:
-            clients += list(self.legacy.values())
+        clients = [self.change_state, self.get_state, self.set_params]
+        if configured:
+            clients += [*self.triggers.values(), *self.legacy.values()]
         for c in clients:
             if not c.wait_for_service(timeout_sec=max(0.1, end - time.monotonic())):
                 raise TimeoutError(f"service {c.srv_name} not found")
-        if not self.action.wait_for_server(timeout_sec=max(0.1, end - time.monotonic())):
+        if configured and not self.action.wait_for_server(timeout_sec=max(0.1, end - time.monotonic())):
             raise TimeoutError("action server not found")
         return {}
 

@@ -121,8 +121,8 @@ class LegacyInterface:
         if request.direction not in ("open", "close"):
             response.error = int(WireStatus.E_INVALID_PARAMETER)
             return response
-        target = min(max(self.node.live.width + step, 0.0), self.node.stroke)
-        response.error = self._call(lambda g: g.move(target, self.node.settings.speed))
+        # relative to where the fingers are (21h relative; the gripper keeps the target inside its stroke)
+        response.error = self._call(lambda g: g.move(step, self.node.settings.speed, relative=True))
         return response
 
     def _set_acc(self, request: Any, response: Any) -> Any:

@@ -1,0 +1,70 @@
+"""The managed node's transitions and the reconnection, from a second rclpy process, against the virtual
+WSG: configure connects, deactivate releases the gripper with its disconnect announcement (07h: no FAST
+STOP, 000 §3.1.2), activate connects again; a dropped connection (the gripper closes it: FAST STOP,
+000 §1.4.2) is reconnected, and the FAST STOP found is acknowledged only when opted in."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from .conftest import open_rig
+from .rig import Rig, needs_ros, wait_until
+
+pytestmark = needs_ros
+
+ERROR, OK = 2, 0
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
+    yield from open_rig(tmp_path_factory.mktemp("ros-lifecycle"), autostart=False)
+
+
+def test_transitions(rig: Rig) -> None:
+    rig.call("wait", configured=False)
+    assert rig.call("state")["state"] == "unconfigured"
+    assert rig.sessions() == 0  # not connected before configure
+    out = rig.call("transition", name="configure")
+    assert out["success"] and out["state"] == "inactive"
+    assert rig.sessions() == 1
+    rig.call("wait")
+    assert not rig.call("trigger", name="homing")["success"]  # inactive: refused
+    assert rig.call("transition", name="activate")["state"] == "active"
+    assert rig.call("trigger", name="homing")["success"]
+    assert rig.call("goal", position=0.07)["succeeded"]
+    out = rig.call("transition", name="deactivate")
+    assert out["success"] and out["state"] == "inactive"
+    assert wait_until(lambda: rig.sessions() == 0)
+    assert not rig.world.state()["fast_stop"]  # released with the disconnect announcement
+    assert not rig.call("goal", position=0.05)["accepted"]
+    assert rig.call("transition", name="activate")["state"] == "active"  # connects again
+    assert rig.sessions() == 1
+    assert rig.call("goal", position=0.05)["succeeded"]
+    assert rig.call("transition", name="deactivate")["state"] == "inactive"
+    assert rig.call("transition", name="cleanup")["state"] == "unconfigured"
+    assert rig.sessions() == 0 and not rig.world.state()["fast_stop"]
+    assert rig.call("transition", name="configure")["state"] == "inactive"
+    assert rig.call("transition", name="activate")["state"] == "active"
+
+
+def test_reconnect_acknowledges_only_when_opted_in(rig: Rig) -> None:
+    rig.call("wait", configured=False)
+    if rig.call("state")["state"] != "active":
+        rig.call("transition", name="configure")
+        rig.call("transition", name="activate")
+    rig.call("wait")
+    # opted out (the default): the FAST STOP the dropped connection raised stays, and the diagnostics show it
+    assert rig.call("set_param", name="acknowledge_after_reconnect", value=False)["successful"]
+    rig.world.disconnect()
+    rig.call("diag", contains="SF_FAST_STOP", level=ERROR)
+    assert wait_until(lambda: rig.sessions() == 1)  # reconnected
+    assert rig.world.state()["fast_stop"]
+    assert rig.call("trigger", name="acknowledge")["success"]
+    # opted in: acknowledged after the reconnection, and goals run again
+    assert rig.call("set_param", name="acknowledge_after_reconnect", value=True)["successful"]
+    rig.world.disconnect()
+    assert wait_until(lambda: rig.sessions() == 1 and not rig.world.state()["fast_stop"], timeout=30)
+    rig.call("diag", absent="SF_FAST_STOP", level=OK)
+    assert rig.call("goal", position=0.06)["succeeded"]
