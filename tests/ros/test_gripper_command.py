@@ -24,7 +24,7 @@ def ready(rig: Rig) -> None:
     """Each test starts referenced, at 60 mm, with no part and full speed."""
     rig.call("wait")
     rig.world.remove_part()
-    if not rig.world.state()["gripper_state"] == "IDLE" or abs(rig.world.state()["width"] - 60) > 0.01:
+    if rig.world.state()["gripper_state"] != "IDLE" or abs(rig.world.state()["width"] - 60) > 0.01:
         assert rig.call("trigger", name="homing")["success"]
         assert rig.call("goal", position=0.06)["succeeded"]
     assert rig.call("set_param", name="speed", value=400.0)["successful"]

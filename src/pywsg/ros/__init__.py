@@ -17,7 +17,7 @@ if importlib.util.find_spec("rclpy") is None:  # pragma: no cover - depends on t
         "pywsg.ros needs ROS 2's rclpy: source your ROS 2 installation first "
         "(e.g. 'source /opt/ros/jazzy/setup.bash'); see docs/ros.md", name="rclpy")
 
-from .main import main  # noqa: E402
-from .node import WsgNode  # noqa: E402
+from .main import main
+from .node import WsgNode
 
 __all__ = ["WsgNode", "main"]

@@ -13,7 +13,7 @@ stops the fingers (22h Stop)."""
 from __future__ import annotations
 
 import threading
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from control_msgs.action import GripperCommand
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -22,15 +22,13 @@ from rclpy.action.server import ServerGoalHandle
 from ..errors import AbortedError, AxisBlockedError, WsgError
 from ..protocol import GripperState
 from . import convert
-
-if TYPE_CHECKING:
-    from .node import WsgNode
+from .host import NodeHost
 
 
 class GripperCommandServer:
     """The action server of one node; one goal at a time (a new goal preempts the running one)."""
 
-    def __init__(self, node: WsgNode, name: str = "~/gripper_cmd") -> None:
+    def __init__(self, node: NodeHost, name: str = "~/gripper_cmd") -> None:
         self.node = node
         self._lock = threading.Lock()
         self._current: ServerGoalHandle | None = None

@@ -8,7 +8,7 @@ code (0 = E_SUCCESS), 255 for a width outside the stroke, as that driver did."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from std_msgs.msg import Bool
 from std_srvs.srv import Empty
@@ -17,11 +17,10 @@ from wsg_50_common.srv import Conf, Incr, Move
 
 from ..client import Gripper
 from ..errors import WsgError
-from ..protocol import GripperState, Status as WireStatus
+from ..protocol import GripperState
+from ..protocol import Status as WireStatus
 from . import convert
-
-if TYPE_CHECKING:
-    from .node import WsgNode
+from .host import NodeHost
 
 #: the ROS 1 driver's answer to a width outside [0, stroke]
 OUT_OF_RANGE = 255
@@ -30,7 +29,7 @@ OUT_OF_RANGE = 255
 class LegacyInterface:
     """The wsg50-ros-pkg services and topics of one node (created at configure, destroyed at cleanup)."""
 
-    def __init__(self, node: WsgNode, namespace: str) -> None:
+    def __init__(self, node: NodeHost, namespace: str) -> None:
         self.node = node
         ns = namespace.strip("/")
         grp = node.group

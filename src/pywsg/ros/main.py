@@ -44,17 +44,17 @@ def main(args: Sequence[str] | None = None, *, url: str | None = None, node_name
     spinner.start()
     status = 0
     try:
-        if node.settings.autostart:
-            if node.trigger_configure() != SUCCESS or node.trigger_activate() != SUCCESS:
-                node.get_logger().error(f"could not start on {node.settings.url}")
-                status = 1
-                stop.set()
+        if node.settings.autostart and not (node.trigger_configure() == SUCCESS
+                                            and node.trigger_activate() == SUCCESS):
+            node.get_logger().error(f"could not start on {node.settings.url}")
+            status = 1
+            stop.set()
         while not stop.wait(0.5):
             pass
     finally:
         try:
             node.trigger_shutdown()  # releases the gripper (07h) from any primary state
-        except Exception:  # noqa: BLE001 - already finalized, or a transition underway: release anyway
+        except Exception:
             node.on_cleanup(None)
         executor.shutdown()
         spinner.join(5)
