@@ -43,15 +43,42 @@ def shm_entries() -> set[str]:
         return set()
 
 
+def shm_in_use() -> set[str]:
+    """The /dev/shm files some live process has open or mapped (a ROS process of another test, say)."""
+    used: set[str] = set()
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/maps") as f:
+                used.update(line.rsplit("/dev/shm/", 1)[1].split()[0] for line in f if "/dev/shm/" in line)
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                if target.startswith("/dev/shm/"):
+                    used.add(target[len("/dev/shm/"):])
+        except OSError:  # the process ended meanwhile, or is not ours to read
+            continue
+    return used
+
+
+def shm_left_behind(before: set[str]) -> set[str]:
+    """Fast DDS files that appeared since ``before`` and that no live process uses: left behind. (Its
+    shared-memory transport stays on: with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST the RMW picks the
+    transports itself, whatever a profile says; a clean exit removes the files.)"""
+    new = shm_entries() - before
+    if not new:
+        return set()
+    left = new - shm_in_use()
+    # a port's semaphore (sem.fastdds_portN_mutex) is not held open between uses: it belongs to its port's
+    # segment, and is left behind only when that segment is gone or unused too
+    return {n for n in left if not (n.startswith("sem.") and n[4:].removesuffix("_mutex") in shm_entries() - left)}
+
+
 def ros_env(log_dir: Path, domain: int) -> dict[str, str]:
     """The environment of the ROS processes: their own domain, discovery confined to this host."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST", "COV_", "VIRTUAL_ENV"))}
     env.pop("PYTHONPATH", None)
     env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_LOG_DIR=str(log_dir), PYTHONUNBUFFERED="1",
-               # UDP on loopback only: Fast DDS's shared-memory transport would leave segments in /dev/shm
-               # behind a process that dies; no test needs it
-               FASTDDS_BUILTIN_TRANSPORTS="UDPv4", RCUTILS_COLORIZED_OUTPUT="0")
+               RCUTILS_COLORIZED_OUTPUT="0")
     return env
 
 
@@ -117,6 +144,8 @@ class Rig:
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=(self.tmp / "client.log").open("w"), text=True)
             self._out = Lines(self.client)
             assert json.loads(self._out.get(FIRST))["ready"]
+            if self.autostart:
+                self.call("wait", active=True)
         except BaseException:
             self.close()
             raise

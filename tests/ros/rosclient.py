@@ -83,8 +83,9 @@ class Client(Node):
             self.statuses.append((time.monotonic(), d))
 
     # -- requests -----------------------------------------------------------------------------
-    def op_wait(self, timeout: float = 30.0, configured: bool = True) -> dict[str, Any]:
-        """Wait for the node's services (``configured``: also those configure makes) and its action."""
+    def op_wait(self, timeout: float = 30.0, configured: bool = True, active: bool = False) -> dict[str, Any]:
+        """Wait for the node's services (``configured``: also those configure makes) and its action;
+        ``active``: until the node is active too."""
         end = time.monotonic() + timeout
         clients = [self.change_state, self.get_state, self.set_params]
         if configured:
@@ -94,6 +95,10 @@ class Client(Node):
                 raise TimeoutError(f"service {c.srv_name} not found")
         if configured and not self.action.wait_for_server(timeout_sec=max(0.1, end - time.monotonic())):
             raise TimeoutError("action server not found")
+        while active and self.op_state()["state"] != "active":
+            if time.monotonic() > end:
+                raise TimeoutError("the node did not become active")
+            time.sleep(0.05)
         return {}
 
     def op_goal(self, position: float, max_effort: float = 0.0, cancel_after: float | None = None,
