@@ -124,7 +124,7 @@ class Client(Node):
         r = res.result
         return {"accepted": True, "status": res.status, "succeeded": res.status == GoalStatus.STATUS_SUCCEEDED,
                 "canceled": res.status == GoalStatus.STATUS_CANCELED,
-                "aborted": res.status == GoalStatus.STATUS_ABORTED, "duration": t1 - t0,
+                "aborted": res.status == GoalStatus.STATUS_ABORTED, "duration": t1 - t0, "t0": t0,
                 "result": {"position": r.position, "effort": r.effort, "stalled": r.stalled,
                            "reached_goal": r.reached_goal},
                 "feedback": feedback, "joint_states": [[js[0] - t0, js[1]] for js in during]}
@@ -185,7 +185,7 @@ class Client(Node):
         time.sleep(duration)
         with self.lock:
             got = [js for js in self.joint_states if js[0] >= t0]
-        return {"times": [js[0] - t0 for js in got], "positions": [js[1] for js in got],
+        return {"t0": t0, "times": [js[0] - t0 for js in got], "positions": [js[1] for js in got],
                 "efforts": [js[2] for js in got], "names": got[-1][3] if got else []}
 
     def op_status(self, timeout: float = 10.0) -> dict[str, Any]:

@@ -27,18 +27,22 @@ def to_m(mm: float) -> float:
     return mm / MM_PER_M
 
 
-def finger_positions(width_mm: float) -> tuple[float, float]:
-    """Joint positions in metres of the two fingers for an opening of ``width_mm``: each finger moves
-    half the opening, the left one along -x, the right one along +x (wsg50-ros-pkg's convention, which
-    its URDF expects)."""
+#: wsg50-ros-pkg's convention (its URDF expects it): the left finger's joint opens negative
+MIRRORED = (-1.0, 1.0)
+
+
+def finger_positions(width_mm: float, signs: tuple[float, float] = MIRRORED) -> tuple[float, float]:
+    """Joint positions in metres of the two fingers (left, right) for an opening of ``width_mm``: each
+    finger moves half the opening, times its sign (``(1, 1)`` for a URDF whose finger joints both open
+    positive, as MoveIt's parallel-jaw gripper handle sums them)."""
     half = width_mm / 2 / MM_PER_M
-    return -half, half
+    return signs[0] * half, signs[1] * half
 
 
-def finger_velocities(speed_mm_s: float) -> tuple[float, float]:
+def finger_velocities(speed_mm_s: float, signs: tuple[float, float] = MIRRORED) -> tuple[float, float]:
     """Joint velocities in m/s for an opening speed of ``speed_mm_s`` (signed as the positions)."""
     half = speed_mm_s / 2 / MM_PER_M
-    return -half, half
+    return signs[0] * half, signs[1] * half
 
 
 @dataclass(frozen=True)

@@ -68,8 +68,8 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
     # -- lifecycle ----------------------------------------------------------------------------
     def on_configure(self, state: Any) -> TransitionCallbackReturn:
         self.settings = s = params.read(self)
-        if len(s.joint_names) != 2:
-            self.get_logger().error("joint_names: give the two finger joints (left, right)")
+        if len(s.joint_names) != 2 or len(s.joint_signs) != 2:
+            self.get_logger().error("joint_names, joint_signs: give two, for the fingers (left, right)")
             return FAILURE
         try:
             self._connect()
@@ -270,8 +270,9 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = s.frame_id
         msg.name = list(s.joint_names)
-        msg.position = list(convert.finger_positions(live.width))
-        msg.velocity = list(convert.finger_velocities(live.speed))
+        signs = (s.joint_signs[0], s.joint_signs[1])
+        msg.position = list(convert.finger_positions(live.width, signs))
+        msg.velocity = list(convert.finger_velocities(live.speed, signs))
         msg.effort = [live.force, live.force]
         pub.publish(msg)
         legacy = self._legacy

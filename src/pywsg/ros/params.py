@@ -26,6 +26,7 @@ class Settings:
     force_limit: float = 0.0
     goal_tolerance: float = 0.0005
     joint_names: list[str] = field(default_factory=lambda: list(JOINT_NAMES))
+    joint_signs: list[float] = field(default_factory=lambda: [-1.0, 1.0])
     frame_id: str = "wsg50_base_link"
     reconnect: bool = True
     acknowledge_after_reconnect: bool = False
@@ -50,6 +51,8 @@ _DESCRIPTIONS: dict[str, tuple[str, tuple[float, float] | None]] = {
                     "the gripper's own", (0.0, 2000.0)),
     "goal_tolerance": ("m: a goal closer than this to the opening neither grips nor releases", (0.0, 0.01)),
     "joint_names": ("the two finger joints of joint_states (left, right)", None),
+    "joint_signs": ("direction of each finger joint (left, right): [-1.0, 1.0] is wsg50-ros-pkg's URDF, [1.0, 1.0] a "
+                    "URDF whose joints both open positive (MoveIt's parallel gripper handle)", None),
     "frame_id": ("frame_id of joint_states", None),
     "reconnect": ("reconnect by itself after a lost connection", None),
     "acknowledge_after_reconnect": ("acknowledge a FAST STOP found after a reconnection (opt-in: the WSG raises "
@@ -77,4 +80,5 @@ def read(node: Node) -> Settings:
     """The parameters' current values."""
     values: dict[str, Any] = {name: node.get_parameter(name).value for name in _DESCRIPTIONS}
     values["joint_names"] = list(values["joint_names"])
+    values["joint_signs"] = [float(v) for v in values["joint_signs"]]
     return Settings(**values)
