@@ -6,8 +6,9 @@ Needs the ROS environment of scripts/ros-env.sh (.venv-ros). Prints:
 
 - goal-to-motion latency: from a GripperCommand goal sent by a second rclpy process to the moment the
   virtual gripper's fingers start moving (its gripper state leaves IDLE; observed in this process by
-  polling the sim, both sides on CLOCK_MONOTONIC), beside ``Gripper.move(wait=False)`` called in this
-  process on a second sim (a WSG takes motion commands from one connection at a time); p50, p90, max over ``--goals`` goals each;
+  polling the sim, both sides on CLOCK_MONOTONIC), beside ``Gripper.move(wait=False)`` called in
+  this process on a second sim (a WSG takes motion commands from one connection at a time);
+  p50, p90, max over ``--goals`` goals each;
 - joint_states rate and jitter: messages/s and inter-arrival spread (stdev, p99 - p50) of the node's
   joint_states at joint_state_rate 100 Hz as the client receives them, beside the driver's own width
   auto-update stream (43h at 10 ms) received in this process from the second sim.
@@ -16,6 +17,7 @@ Needs the ROS environment of scripts/ros-env.sh (.venv-ros). Prints:
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import statistics
 import sys
@@ -25,9 +27,9 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, for tests/
-from pywsg import Gripper  # noqa: E402
-from pywsg.testing import SimThread  # noqa: E402
-from tests.ros.rig import READY, Rig  # noqa: E402
+from pywsg import Gripper
+from pywsg.testing import SimThread
+from tests.ros.rig import READY, Rig
 
 
 class MotionWatch:
@@ -73,7 +75,7 @@ def spread(values: list[float]) -> str:
 
 
 def intervals(times: list[float]) -> dict[str, float]:
-    d = [b - a for a, b in zip(times, times[1:], strict=False)]
+    d = [b - a for a, b in itertools.pairwise(times)]
     d.sort()
     return {"rate": (len(times) - 1) / (times[-1] - times[0]), "mean": statistics.fmean(d),
             "stdev": statistics.pstdev(d), "p50": d[len(d) // 2], "p99": d[min(len(d) - 1, int(0.99 * len(d)))]}
@@ -125,7 +127,8 @@ def main() -> None:
         print(f"goal-to-motion latency over {args.goals} goals (21h move, 400 mm/s)")
         print(f"  driver alone (Gripper.move)      {spread(driver_lat)}")
         print(f"  ROS node (GripperCommand goal)   {spread(node_lat)}")
-        print(f"  added by ROS (median)            {(statistics.median(node_lat) - statistics.median(driver_lat)) * 1e3:6.2f} ms")
+        added = statistics.median(node_lat) - statistics.median(driver_lat)
+        print(f"  added by ROS (median)            {added * 1e3:6.2f} ms")
         print(f"joint states over {args.seconds:g} s at a 10 ms stream period")
         for name, r in (("driver alone (43h stream)", drv), ("ROS node (joint_states)", node_js)):
             print(f"  {name:32s} {r['rate']:6.1f}/s  interval mean {r['mean'] * 1e3:5.2f} ms  stdev "
