@@ -121,7 +121,8 @@ class Lines:
 class Rig:
     """Sim + node process + client process; ``rig.call(op, **kw)`` asks the client (see rosclient.py)."""
 
-    def __init__(self, tmp: Path, *, params: dict[str, Any] | None = None, autostart: bool = True) -> None:
+    def __init__(self, tmp: Path, *, params: dict[str, Any] | None = None, autostart: bool = True,
+                 params_file: Path | None = None) -> None:
         self.tmp = tmp
         self.shm_before = shm_entries()
         self.sim = SimThread(udp_port=None).start()
@@ -133,6 +134,7 @@ class Rig:
         self.node_log = tmp / "node.log"
         self.params = {"speed": 400.0, "joint_state_rate": 50.0, "diagnostics_rate": 5.0, **(params or {})}
         self.autostart = autostart
+        self.params_file = params_file
         self._out: Lines | None = None
         self.world_after: dict[str, Any] = {}
 
@@ -153,6 +155,8 @@ class Rig:
 
     def start_node(self, **params: Any) -> None:
         ros_args = ["--ros-args", "--log-level", "info"]
+        if self.params_file is not None:
+            ros_args += ["--params-file", str(self.params_file)]
         for k, v in {**self.params, "autostart": self.autostart, **params}.items():
             ros_args += ["-p", f"{k}:={json.dumps(v) if not isinstance(v, str) else v}"]
         self.node = subprocess.Popen(

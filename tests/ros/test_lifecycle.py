@@ -10,16 +10,18 @@ from collections.abc import Iterator
 import pytest
 
 from .conftest import open_rig
-from .rig import Rig, needs_ros, wait_until
+from .rig import ROOT, Rig, needs_ros, wait_until
 
 pytestmark = needs_ros
 
 ERROR, OK = 2, 0
+PARAMS_FILE = ROOT / "ros" / "pywsg_ros" / "config" / "wsg.yaml"
 
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    yield from open_rig(tmp_path_factory.mktemp("ros-lifecycle"), autostart=False)
+    # the package's own parameters file (its url, a real gripper's, loses to wsg ros --url)
+    yield from open_rig(tmp_path_factory.mktemp("ros-lifecycle"), autostart=False, params_file=PARAMS_FILE)
 
 
 def test_transitions(rig: Rig) -> None:
