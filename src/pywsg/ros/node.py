@@ -34,6 +34,7 @@ from ..client import Gripper, ReconnectPolicy, Sample, Stream
 from ..errors import WsgError
 from ..protocol import SystemFlag
 from . import convert, params
+from .gripper_action import GripperCommandServer
 from .live import Live
 
 #: reconnect for as long as the node lives (each try at most 2 s apart)
@@ -73,8 +74,9 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
             return FAILURE
         try:
             self._connect()
-        except WsgError as exc:
+        except (WsgError, ValueError) as exc:  # ValueError: a URL pywsg cannot read
             self.get_logger().error(f"cannot connect to {s.url}: {exc}")
+            self.note_error(exc)
             self._release()
             return FAILURE
         self._make_interfaces()
@@ -193,8 +195,6 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
 
     # -- interfaces ---------------------------------------------------------------------------
     def _make_interfaces(self) -> None:
-        from .gripper_action import GripperCommandServer
-
         s, grp = self.settings, self.group
         self._joint_pub = self.create_publisher(JointState, "joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
