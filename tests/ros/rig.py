@@ -7,11 +7,13 @@ the tests skip, saying so."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import queue
 import signal
 import subprocess
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -82,14 +84,26 @@ def ros_env(log_dir: Path, domain: int) -> dict[str, str]:
     return env
 
 
-_domains = iter(range(1, 1000))
+class Domain:
+    """A ROS domain (1..100, inside Fast DDS's port range) that no other rig on this machine uses while this
+    one lives: each rig holds an exclusive lock on a file named by its domain (any process, any worker)."""
 
+    def __init__(self) -> None:
+        start = os.getpid() % 100
+        for i in range(100):
+            number = 1 + (start + i) % 100
+            f = open(Path(tempfile.gettempdir()) / f"pywsg-ros-domain-{number}.lock", "w")  # noqa: SIM115
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                f.close()
+                continue
+            self.number, self._file = number, f
+            return
+        raise RuntimeError("no free ROS domain: 100 rigs running?")
 
-def next_domain() -> int:
-    """A ROS domain for this worker's next rig (workers differ by pid; 1..100, inside Fast DDS's port range)."""
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
-    base = int(worker[2:]) if worker[2:].isdigit() else 0
-    return 1 + (base * 17 + os.getpid() + next(_domains) * 3) % 100
+    def release(self) -> None:
+        self._file.close()  # closing drops the lock
 
 
 class Lines:
@@ -127,8 +141,8 @@ class Rig:
         self.shm_before = shm_entries()
         self.sim = SimThread(udp_port=None).start()
         self.world = self.sim.world
-        self.domain = next_domain()
-        self.env = ros_env(tmp, self.domain)
+        self.domain = Domain()
+        self.env = ros_env(tmp, self.domain.number)
         self.node: subprocess.Popen[str] | None = None
         self.client: subprocess.Popen[str] | None = None
         self.node_log = tmp / "node.log"
@@ -208,6 +222,7 @@ class Rig:
         status = self.stop_node()
         self.world_after = self.world.state()
         self.sim.stop()
+        self.domain.release()
         return status
 
     def sessions(self) -> int:
