@@ -7,15 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from .rig import READY, Rig, shm_left_behind, wait_until
+from .rig import Rig, shm_left_behind, skip_reason, wait_until
 
 
 def open_rig(tmp: Path, **kw: object) -> Iterator[Rig]:
     """Body of a module's ``rig`` fixture: started, and at the end stopped with the checks every module
     shares: the node exits 0 on SIGTERM, the gripper is left without FAST STOP (released with its
     disconnect announcement), no process and no Fast DDS shared-memory file is left."""
-    if not READY.exists():
-        pytest.skip(f"the ROS 2 test environment is not built: run scripts/ros-env.sh (looked for {READY})")
+    reason = skip_reason()
+    if reason is not None:
+        pytest.skip(reason)
     rig = Rig(tmp, **kw).start()  # type: ignore[arg-type]
     node, client = rig.node, rig.client
     try:

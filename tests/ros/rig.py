@@ -13,6 +13,7 @@ import os
 import queue
 import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -28,8 +29,34 @@ VENV = Path(os.environ.get("PYWSG_ROS_VENV", ROOT / ".venv-ros"))
 READY = VENV / "pywsg-ros-ready"
 CLIENT = Path(__file__).with_name("rosclient.py")
 
-needs_ros = pytest.mark.skipif(
-    not READY.exists(), reason=f"the ROS 2 test environment is not built: run scripts/ros-env.sh (looked for {READY})")
+
+
+def venv_python() -> str:
+    """X.Y of the ROS venv's Python ("" when there is none)."""
+    try:
+        cfg = (VENV / "pyvenv.cfg").read_text()
+    except OSError:
+        return ""
+    for line in cfg.splitlines():
+        key, _, value = line.partition("=")
+        if key.strip() in ("version", "version_info"):
+            return ".".join(value.strip().split(".")[:2])
+    return ""
+
+
+def skip_reason() -> str | None:
+    """Why the ROS tests cannot run here, or None. They run once per suite: on the interpreter of the ROS
+    venv (scripts/test.sh's main run); the runs on other Pythons (scripts/other-python.sh) would start the
+    same ROS processes of .venv-ros again."""
+    if not READY.exists():
+        return f"the ROS 2 test environment is not built: run scripts/ros-env.sh (looked for {READY})"
+    here = f"{sys.version_info[0]}.{sys.version_info[1]}"
+    if venv_python() and venv_python() != here:
+        return f"the ROS tests run on the ROS venv's Python {venv_python()} (this is {here}): once per suite"
+    return None
+
+
+needs_ros = pytest.mark.skipif(skip_reason() is not None, reason=skip_reason() or "")
 
 NODE = "wsg_gripper"
 LEGACY = "wsg_50_driver"
