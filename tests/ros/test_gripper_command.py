@@ -59,8 +59,8 @@ def test_grip_without_a_part_is_not_reached(rig: Rig) -> None:
 
 
 def test_cancel_stops_the_fingers_mid_motion(rig: Rig) -> None:
-    assert rig.call("set_param", name="speed", value=20.0)["successful"]
-    out = rig.call("goal", position=0.1, cancel_after=0.4)  # 60 -> 100 mm at 20 mm/s: 2 s
+    assert rig.call("set_param", name="speed", value=10.0)["successful"]
+    out = rig.call("goal", position=0.1, cancel_after=0.4)  # 60 -> 100 mm at 10 mm/s: 4 s
     assert out["canceled"], out
     width = rig.world.state()["width"]
     assert 60.5 < width < 99.0

@@ -5,12 +5,15 @@ STOP, 000 §3.1.2), activate connects again; a dropped connection (the gripper c
 
 from __future__ import annotations
 
+import subprocess
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
+from ..ports import free_port
 from .conftest import open_rig
-from .rig import ROOT, Rig, needs_ros, wait_until
+from .rig import ROOT, VENV, Domain, Rig, needs_ros, ros_env, wait_until
 
 pytestmark = needs_ros
 
@@ -70,3 +73,15 @@ def test_reconnect_acknowledges_only_when_opted_in(rig: Rig) -> None:
     assert wait_until(lambda: rig.sessions() == 1 and not rig.world.state()["fast_stop"], timeout=30)
     rig.call("diag", absent="SF_FAST_STOP", level=OK)
     assert rig.call("goal", position=0.06)["succeeded"]
+
+
+def test_wsg_ros_exits_1_when_the_gripper_is_not_there(tmp_path: Path) -> None:
+    port = free_port()  # nothing listens there
+    domain = Domain()
+    try:
+        out = subprocess.run([str(VENV / "bin" / "wsg"), "ros", "--url", f"tcp://127.0.0.1:{port}"],
+                             env=ros_env(tmp_path, domain.number), capture_output=True, text=True, timeout=120)
+    finally:
+        domain.release()
+    assert out.returncode == 1, out.stderr
+    assert f"cannot connect to tcp://127.0.0.1:{port}" in out.stderr + out.stdout
