@@ -89,3 +89,20 @@ def test_wsg50_ros_pkg_services_and_status(rig: Rig) -> None:
     rig.call("trigger", name="fast_stop")
     assert rig.call("legacy", name="ack")["error"] is None
     assert not rig.world.state()["fast_stop"]
+
+
+def test_acceleration_and_force_limit_parameters_reach_the_gripper(rig: Rig) -> None:
+    """Set at once on the gripper (30h, 32h): the status topic reads the acceleration back (31h), a grip
+    holds with the force limit; a value outside the declared range is refused."""
+    rig.call("trigger", name="homing")
+    assert rig.call("set_param", name="acceleration", value=900.0)["successful"]
+    assert rig.call("status")["status"]["acc"] == pytest.approx(900.0, abs=1.0)
+    assert rig.call("set_param", name="force_limit", value=35.0)["successful"]
+    rig.world.place_part(20)
+    try:
+        assert rig.call("legacy", name="grasp", width=20.0, speed=200.0)["error"] == 0
+        assert rig.world.state()["force"] == pytest.approx(35.0, abs=0.5)
+        assert rig.call("legacy", name="release", width=60.0, speed=200.0)["error"] == 0
+    finally:
+        rig.world.remove_part()
+    assert not rig.call("set_param", name="joint_state_rate", value=500.0)["successful"]  # above 100 Hz
