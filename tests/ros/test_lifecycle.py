@@ -17,7 +17,7 @@ from .rig import ROOT, VENV, Domain, Rig, needs_ros, ros_env, wait_until
 
 pytestmark = needs_ros
 
-ERROR, OK = 2, 0
+ERROR, OK, STALE = 2, 0, 3
 PARAMS_FILE = ROOT / "ros" / "pywsg_ros" / "config" / "wsg.yaml"
 
 
@@ -44,6 +44,7 @@ def test_transitions(rig: Rig) -> None:
     assert wait_until(lambda: rig.sessions() == 0)
     assert not rig.world.state()["fast_stop"]  # released with the disconnect announcement
     assert not rig.call("goal", position=0.05)["accepted"]
+    assert "released" in rig.call("diag", key="system_flags", contains="", level=STALE)["status"]["message"]
     assert rig.call("transition", name="activate")["state"] == "active"  # connects again
     assert rig.sessions() == 1
     assert rig.call("goal", position=0.05)["succeeded"]
