@@ -102,7 +102,7 @@ class Client(Node):
         return {}
 
     def op_goal(self, position: float, max_effort: float = 0.0, cancel_after: float | None = None,
-                timeout: float = 30.0) -> dict[str, Any]:
+                deactivate_after: float | None = None, timeout: float = 30.0) -> dict[str, Any]:
         goal = GripperCommand.Goal()
         goal.command.position = float(position)
         goal.command.max_effort = float(max_effort)
@@ -117,6 +117,9 @@ class Client(Node):
         if cancel_after is not None:
             time.sleep(cancel_after)
             wait_future(handle.cancel_goal_async(), 10)
+        if deactivate_after is not None:
+            time.sleep(deactivate_after)
+            self.op_transition("deactivate")
         res = wait_future(result_future, timeout)
         t1 = time.monotonic()
         with self.lock:

@@ -86,3 +86,25 @@ def test_wsg_ros_exits_1_when_the_gripper_is_not_there(tmp_path: Path) -> None:
         domain.release()
     assert out.returncode == 1, out.stderr
     assert f"cannot connect to tcp://127.0.0.1:{port}" in out.stderr + out.stdout
+
+
+def test_deactivate_stops_a_running_goal_first(rig: Rig) -> None:
+    rig.call("wait", configured=False)
+    for step, before in (("configure", "unconfigured"), ("activate", "inactive")):
+        if rig.call("state")["state"] == before:
+            rig.call("transition", name=step)
+    rig.call("wait", active=True)
+    rig.call("trigger", name="homing")
+    assert rig.call("goal", position=0.06)["succeeded"]
+    assert rig.call("set_param", name="speed", value=10.0)["successful"]
+    try:
+        out = rig.call("goal", position=0.1, deactivate_after=0.4)  # 60 -> 100 mm at 10 mm/s: 4 s
+        assert out["aborted"], out
+        assert rig.call("state")["state"] == "inactive"
+        width = rig.world.state()["width"]
+        assert 60.5 < width < 99.0  # stopped on the way (22h), not left running after the release
+        assert not wait_until(lambda: rig.world.state()["width"] > width + 0.05, timeout=0.3)
+        assert not rig.world.state()["fast_stop"] and rig.sessions() == 0
+    finally:
+        rig.call("set_param", name="speed", value=400.0)
+        rig.call("transition", name="activate")

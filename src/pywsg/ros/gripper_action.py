@@ -41,6 +41,13 @@ class GripperCommandServer:
     def destroy(self) -> None:
         self.server.destroy()
 
+    def halt(self, timeout: float) -> None:
+        """Stop a running goal's fingers (22h) and wait up to ``timeout`` s for the goal to end (aborted):
+        before the node releases the gripper."""
+        with self._lock:
+            self._current = None
+        self._finished.wait(timeout)
+
     # -- callbacks ----------------------------------------------------------------------------
     def _on_goal(self, _request: Any) -> GoalResponse:
         return GoalResponse.ACCEPT if self.node.ready() else GoalResponse.REJECT

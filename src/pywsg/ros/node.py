@@ -98,11 +98,13 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
 
     def on_deactivate(self, state: Any) -> TransitionCallbackReturn:
         self._active = False
+        self._halt()
         self._release()
         return SUCCESS
 
     def on_cleanup(self, state: Any) -> TransitionCallbackReturn:
         self._active = False
+        self._halt()
         self._release()
         self._destroy_interfaces()
         return SUCCESS
@@ -114,6 +116,11 @@ class WsgNode(LifecycleNode):  # type: ignore[misc]  # rclpy is untyped here
         self._active = False
         self._release()
         return SUCCESS
+
+    def _halt(self) -> None:
+        """A running goal stops its fingers and ends before the gripper is released."""
+        if self._action is not None:
+            self._action.halt(self.settings.timeout * 5)
 
     def ready(self) -> bool:
         """Active with a gripper: goals and service calls are taken."""
