@@ -21,7 +21,13 @@ inputs=$(cat scripts/ros-env.sh scripts/ros/requirements.txt scripts/ros/constra
     scripts/ros/control_msgs/CMakeLists.txt scripts/ros/control_msgs/package.xml \
     scripts/ros/control_msgs/*/* ros/wsg_50_common/CMakeLists.txt ros/wsg_50_common/package.xml \
     ros/wsg_50_common/*/* | sha256sum | cut -d' ' -f1)
+# pywsg's own dependencies (pyproject.toml) changing needs only pip, not the interface builds
+deps=$(sha256sum pyproject.toml | cut -d' ' -f1)
 if [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$inputs" ] && [ -x "$V/bin/python" ]; then
+    if [ "$(cat "$V/pywsg-deps" 2>/dev/null)" != "$deps" ]; then
+        "$V/bin/python" -m pip install -q --disable-pip-version-check -e . -c scripts/ros/constraints.txt
+        echo "$deps" >"$V/pywsg-deps"
+    fi
     exit 0
 fi
 need=()
@@ -39,7 +45,7 @@ rm -f "$STAMP"
 V=$(cd "$V" && pwd)
 PIP=("$V/bin/python" -m pip install -q --disable-pip-version-check)
 "${PIP[@]}" -r scripts/ros/requirements.txt -c scripts/ros/constraints.txt
-"${PIP[@]}" -e .
+"${PIP[@]}" -e . -c scripts/ros/constraints.txt
 
 # The wheels' exported CMake files name the include directories of the machine that built them (Python's and
 # numpy's); point them at this venv's own before building anything against them.
@@ -75,5 +81,6 @@ wait "$p2" || status=1
 "$V/bin/python" -c 'import rclpy, control_msgs.action, wsg_50_common.srv, pywsg.ros' \
     || { echo "ros-env: the built environment does not import" >&2; exit 1; }
 rm -rf "$V/build"
+echo "$deps" >"$V/pywsg-deps"
 echo "$inputs" >"$STAMP"
 echo "ros-env: ROS 2 test environment ready in $V ($((SECONDS - start)) s)"
