@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -28,3 +29,14 @@ def open_rig(tmp: Path, **kw: object) -> Iterator[Rig]:
     assert not rig.world_after["fast_stop"], "the node left without announcing its disconnect (07h)"
     # Fast DDS removes its segments when a participant closes: none may outlive our processes
     assert wait_until(lambda: not shm_left_behind(rig.shm_before), timeout=5), shm_left_behind(rig.shm_before)
+
+
+def rig_fixture(name: str, **kw: Any) -> Callable[..., Iterator[Rig]]:
+    """A module-scoped ``rig`` fixture (one node process per module, shared by its tests):
+    ``rig = rig_fixture("ros-action")`` in the module."""
+
+    @pytest.fixture(scope="module")
+    def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
+        yield from open_rig(tmp_path_factory.mktemp(name), **kw)
+
+    return rig

@@ -4,19 +4,15 @@ mid-motion (the fingers stop), joint states streaming while a goal runs (000 §3
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
-from .conftest import open_rig
+from .conftest import rig_fixture
 from .rig import Rig, needs_ros, wait_until
 
 pytestmark = needs_ros
 
 
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    yield from open_rig(tmp_path_factory.mktemp("ros-action"))
+rig = rig_fixture("ros-action")
 
 
 @pytest.fixture(autouse=True)

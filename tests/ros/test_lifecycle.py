@@ -6,13 +6,10 @@ STOP, 000 §3.1.2), activate connects again; a dropped connection (the gripper c
 from __future__ import annotations
 
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
-
 from ..ports import free_port
-from .conftest import open_rig
+from .conftest import rig_fixture
 from .rig import ROOT, VENV, Domain, Rig, needs_ros, ros_env, wait_until
 
 pytestmark = needs_ros
@@ -21,10 +18,8 @@ ERROR, OK, STALE = 2, 0, 3
 PARAMS_FILE = ROOT / "ros" / "pywsg_ros" / "config" / "wsg.yaml"
 
 
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    # the package's own parameters file (its url, a real gripper's, loses to wsg ros --url)
-    yield from open_rig(tmp_path_factory.mktemp("ros-lifecycle"), autostart=False, params_file=PARAMS_FILE)
+# the package's own parameters file (its url, a real gripper's, loses to wsg ros --url)
+rig = rig_fixture("ros-lifecycle", autostart=False, params_file=PARAMS_FILE)
 
 
 def test_transitions(rig: Rig) -> None:

@@ -4,11 +4,9 @@ acknowledge, §3.4.1 system flags)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
-from .conftest import open_rig
+from .conftest import rig_fixture
 from .rig import Rig, needs_ros
 
 pytestmark = needs_ros
@@ -16,9 +14,7 @@ pytestmark = needs_ros
 ERROR, OK = 2, 0
 
 
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    yield from open_rig(tmp_path_factory.mktemp("ros-services"))
+rig = rig_fixture("ros-services")
 
 
 @pytest.fixture(autouse=True)
