@@ -76,6 +76,7 @@ class _Pipe(asyncio.Protocol):
         self.shaper = Shaper(proxy.net, self._to_client)
         """Network faults on the gripper's bytes toward the client (after the tap: the capture has them as sent)."""
         self._net_timer: asyncio.TimerHandle | None = None
+        self._early: list[bytes] = []  # client bytes read before the gripper side was up (Python 3.10)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -90,6 +91,12 @@ class _Pipe(asyncio.Protocol):
         if self.proxy.net.active:
             self.net_rules()
         transport.pause_reading()  # until the gripper side is up
+        # Python 3.10's selector transport adds its reader *after* connection_made (a callback queued
+        # before it), ignoring a pause made here (3.11 checks is_reading() first), and a second
+        # pause_reading() is then a no-op. So on 3.10 the client can be read before the gripper side is
+        # up: data_received keeps it in _early, and this resume/pause pair, queued behind the transport's
+        # own callback, stops reading for real until _connect is done.
+        asyncio.get_running_loop().call_soon(self._repause)
         task = asyncio.get_running_loop().create_task(self._connect())
         self.proxy._tasks.add(task)
         task.add_done_callback(self.proxy._tasks.discard)
@@ -116,7 +123,16 @@ class _Pipe(asyncio.Protocol):
         for reason in list(self._upstream_holds):  # holds taken before it existed
             self._upstream_holds.discard(reason)
             self.hold_upstream(reason, True)
+        early, self._early = self._early, []
+        for data in early:
+            self._forward(data)
         self.hold_client("connecting", False)
+
+    def _repause(self) -> None:
+        c = self.client
+        if self.upstream is None and c is not None and not c.is_closing() and self._client_holds:
+            c.resume_reading()
+            c.pause_reading()
 
     # -- flow control: a set of reasons per side; reading resumes when none is left
     def hold_client(self, reason: str, on: bool) -> None:
@@ -139,6 +155,12 @@ class _Pipe(asyncio.Protocol):
 
     # -- data
     def data_received(self, data: bytes) -> None:
+        if self.upstream is None:  # read before the gripper side was up: only on Python 3.10 (_repause)
+            self._early.append(data)
+            return
+        self._forward(data)
+
+    def _forward(self, data: bytes) -> None:
         assert self.upstream is not None
         net = self.proxy.net
         if not net.active:
