@@ -73,7 +73,7 @@ class _Pipe(asyncio.Protocol):
         self.gripper_eofd = False
         self._client_holds: set[str] = {"connecting"}
         self._upstream_holds: set[str] = set()
-        self.shaper = Shaper(proxy.net, self._to_client)
+        self.shaper = Shaper(proxy.net, self._to_client, hold=lambda on: self.hold_upstream("net fault", on))
         """Network faults on the gripper's bytes toward the client (after the tap: the capture has them as sent)."""
         self._net_timer: asyncio.TimerHandle | None = None
         self._early: list[bytes] = []  # client bytes read before the gripper side was up (Python 3.10)
@@ -90,6 +90,8 @@ class _Pipe(asyncio.Protocol):
         self.proxy._pipes.add(self)
         if self.proxy.net.active:
             self.net_rules()
+            if self.closed:  # reset at once (timeout 0)
+                return
         transport.pause_reading()  # until the gripper side is up
         # Python 3.10's selector transport adds its reader *after* connection_made (a callback queued
         # before it), ignoring a pause made here (3.11 checks is_reading() first), and a second
