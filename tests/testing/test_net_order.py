@@ -90,7 +90,8 @@ def test_every_combination_switched_at_runtime_keeps_the_stream_whole(
         loop.close()
     assert overflow == 0
     assert len(written) == len(sent)
-    assert written == sent, f"first difference at byte {next(i for i, (a, b) in enumerate(zip(sent, written, strict=True)) if a != b)}"
+    first = next((i for i, (a, b) in enumerate(zip(sent, written, strict=True)) if a != b), None)
+    assert first is None, f"the stream differs from byte {first} on"
 
 
 def _pipelined(port: int, switch: Callable[[dict[str, dict[str, float]]], object], frames: int = 2000,
