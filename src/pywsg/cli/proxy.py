@@ -172,15 +172,16 @@ def _address(text: str, hint: str) -> tuple[str, int]:
 
 def start_fault(net: Any, spec: str) -> None:
     """``--net latency:ms=200,jitter=50`` switched on in ``net`` (a NetFaults); bad ones are usage errors."""
-    from ..server.netfault import NetFaultError
+    from ..server.netfault import NetFaultError, parse_number
 
     kind, _, rest = spec.partition(":")
-    params: dict[str, str] = {}
+    params: dict[str, object] = {}
     for item in filter(None, rest.split(",")):
         key, eq, value = item.partition("=")
         if not eq:
             raise click.BadParameter(f"{spec!r}: parameters are KEY=VALUE, not {item!r}", param_hint="--net")
-        params[key.strip()] = value.strip()
+        key = key.strip()
+        params[key] = value.strip() if key == "on" else parse_number(value.strip())
     try:
         net.set(kind.strip(), params)
     except NetFaultError as exc:

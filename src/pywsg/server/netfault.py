@@ -34,9 +34,10 @@ import asyncio
 import collections
 import math
 import random
+import re
 import weakref
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 __all__ = ["KINDS", "NetFaultError", "NetFaults", "Shaper", "net_faults"]
@@ -78,17 +79,37 @@ class _Settings:
     garble: float = 0.0
 
 
+def _show(value: Any) -> str:
+    """``repr`` cut short: a refused value may be a 400-digit number."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 64 else "a huge integer"
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _num(params: Mapping[str, Any], name: str, default: float, lo: float = 0.0, hi: float = math.inf) -> float:
+    """A JSON number within ``lo..hi``. Strings are refused, as by every world route (``"1_0"`` is not
+    10): the command line's ``--net`` turns its text into numbers first (:func:`parse_number`)."""
     value = params.get(name, default)
-    if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise NetFaultError(name, f"must be a number, not {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise NetFaultError(name, f"must be a number, not {_show(value)}")
     try:
         out = float(value)
-    except ValueError:
-        raise NetFaultError(name, f"must be a number, not {value!r}") from None
+    except OverflowError:  # an integer beyond any float
+        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {_show(value)}") from None
     if not (math.isfinite(out) and lo <= out <= hi):
-        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {value!r}")
+        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {_show(value)}")
     return out
+
+
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def parse_number(text: str) -> float | int | str:
+    """Command-line text as the number it spells (``200``, ``0.5``, ``1e3``); anything else (``1_0``,
+    ``" 5 "``, ``nan``) is returned as it is, for :meth:`NetFaults.set` to refuse with the field named."""
+    if _NUMBER.fullmatch(text):
+        digits = text.lstrip("+-")
+        return int(text) if digits.isdigit() and len(digits) < 20 else float(text)  # (huge: inf, refused)
+    return text
 
 
 def on_param(params: Mapping[str, Any], error: Callable[[str, str], Exception] = NetFaultError) -> bool:
@@ -141,10 +162,12 @@ class NetFaults:
         if unknown:
             raise NetFaultError(sorted(unknown)[0], f"not a parameter of {kind} ({', '.join(_PARAMS[kind])})")
         on = on_param(p)
-        if "seed" in p:
-            self.rng.seed(int(_num(p, "seed", 0, 0, 2**63)))
-        s = self.s
+        seed = int(_num(p, "seed", 0, 0, 2**63)) if "seed" in p else None
+        s = replace(self.s)  # all parameters checked before any is applied: a refusal changes nothing
         text = self._switch(kind, on, p, s)
+        self.s = s
+        if seed is not None:
+            self.rng.seed(seed)
         # reset is on at any timeout, 0 included ("now and at every connect"): None is its off
         self.active = s.reset is not None or any(
             getattr(s, f.name) not in (0, 0.0, None, False) for f in fields(s) if f.name != "reset")

@@ -127,11 +127,12 @@ class ControlServer:
                     return
                 try:
                     params = json.loads(self.rfile.read(int(length)) or b"{}")
-                except (ValueError, UnicodeDecodeError):
+                except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting 1,000+ deep
                     self._reply(422, {"detail": "invalid input: body is not JSON", "errors": {"_": "not JSON"}})
                     return
                 if not isinstance(params, dict):
-                    self._reply(422, {"detail": "invalid input: body must be a JSON object"})
+                    self._reply(422, {"detail": "invalid input: body must be a JSON object",
+                                      "errors": {"_": "not an object"}})
                     return
                 kind = str(params.pop("kind", ""))
 
