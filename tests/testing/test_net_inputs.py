@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import http.client
 import json
+import socket
 from collections.abc import Iterator
 
 import pytest
@@ -109,3 +110,26 @@ def test_net_option_reads_numbers_and_refuses_numeric_look_alikes() -> None:
         r = CliRunner().invoke(cli, ["proxy", "--listen", "0", "--to", "tcp://127.0.0.1:1", "--net", spec])
         assert r.exit_code == 2, (spec, r.output)
         assert "--net" in r.output and ("ms" in r.output or "seed" in r.output), r.output
+
+
+@pytest.mark.parametrize("host", ["::1", "127.0.0.9"])
+def test_control_on_ipv6_and_any_loopback_address_serves_wsg_world(host: str) -> None:
+    """Issue 33 item 7: ``--control ::1:PORT`` failed (IPv4 only) and ``--control 127.0.0.9:PORT`` bound
+    but refused every request (the Host check knew only 127.0.0.1, localhost and ::1)."""
+    if ":" in host:
+        try:
+            socket.socket(socket.AF_INET6).close()
+        except OSError:  # pragma: no cover - a machine without IPv6
+            pytest.skip("no IPv6")
+    loop = LoopThread("control-hosts")
+    net = NetFaults()
+    try:
+        server = ControlServer(net, loop.loop, host, 0).start()
+        try:
+            r = CliRunner().invoke(cli, ["world", "--sim", server.url, "net", "latency", "--ms", "5"])
+            assert r.exit_code == 0, r.output
+            assert loop.call(net.state) == {"latency": {"ms": 5.0, "jitter": 0.0}}
+        finally:
+            server.close()
+    finally:
+        loop.close()
