@@ -13,6 +13,8 @@ from typing import Any, TextIO
 
 import click
 
+from .runner import FloatRange
+
 
 def _open_jsonl(path: Path) -> TextIO:
     """The --jsonl file, opened for writing (the caller closes it); a path that cannot be written is
@@ -42,7 +44,7 @@ def _open_jsonl(path: Path) -> TextIO:
 @click.option("--control", "control", default=None, metavar="[HOST:]PORT",
               help="Serve the network faults' control API here (0: any free port): "
                    "wsg world --sim http://127.0.0.1:PORT net latency --ms 200 switches them at runtime.")
-@click.option("--udp-idle", type=click.FloatRange(0.1, 86400), default=60.0, show_default=True, metavar="S",
+@click.option("--udp-idle", type=FloatRange(0.1, 86400), default=60.0, show_default=True, metavar="S",
               help="UDP: close a client's upstream socket after S seconds without traffic.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON lines instead of text lines.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing per frame (files only).")
