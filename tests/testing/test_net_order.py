@@ -248,3 +248,29 @@ def test_a_delayed_udp_reply_goes_to_the_client_that_asked(sim: SimThread) -> No
     finally:
         sim.world.net("clear")
     assert (got_a.payload[2:], got_b.payload[2:]) == (b"from A", b"from B")
+
+
+def test_a_stream_that_must_lose_nothing_pauses_its_source_instead() -> None:
+    """``wsg proxy`` forwards whatever it read, not whole frames: over the bound it stops reading the
+    gripper (``hold``) where the sim drops a whole reply (``counts["overflow"]``)."""
+    from pywsg.server.netfault import MAX_PENDING
+
+    async def flood() -> tuple[list[bool], int, int, bool]:
+        nf = NetFaults()
+        nf.set("bandwidth", {"rate": 1_000_000})
+        holds: list[bool] = []
+        written: list[bytes] = []
+        shaper = Shaper(nf, written.append, hold=holds.append)
+        blob = bytes(range(256)) * 4
+        for _ in range(2 * MAX_PENDING // len(blob)):  # twice the bound, in 1 KiB reads
+            shaper.send(blob)
+        for _ in range(1000):
+            if not shaper.busy:
+                break
+            await asyncio.sleep(0.01)
+        whole = b"".join(written) == blob * (2 * MAX_PENDING // len(blob))
+        return holds, nf.counts["overflow"], len(b"".join(written)), whole
+
+    holds, overflow, n, whole = asyncio.run(flood())
+    assert overflow == 0 and whole, n
+    assert holds == [True, False]

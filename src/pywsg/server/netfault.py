@@ -315,7 +315,7 @@ class Shaper:
         a datagram goes to the address that asked whenever it is sent."""
         f = self.faults
         out = write or self.write
-        if not f.active and not self.busy:
+        if not f.active and not self._queue and not self._pending and self._held is None:  # (busy, inlined)
             out(data)
             return
         s = f.s
