@@ -20,7 +20,7 @@ import time
 import pytest
 
 from ..simlog import tracebacks
-from .test_connection_caps import MODBUS_READ
+from .test_connection_caps import MODBUS_READ, _closed_within
 
 LOOPS = ["default"]
 try:
@@ -29,16 +29,6 @@ except ImportError:  # pragma: no cover - [web] brings it; then the default loop
     pass
 else:
     LOOPS.append("--no-uvloop")
-
-
-def _closed_within(s: socket.socket, timeout: float) -> bool:
-    s.settimeout(timeout)
-    try:
-        return s.recv(1) == b""
-    except TimeoutError:
-        return False
-    except OSError:
-        return True
 
 
 @pytest.mark.parametrize("loop", LOOPS)
