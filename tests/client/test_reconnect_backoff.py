@@ -13,6 +13,7 @@ import pytest
 
 from pywsg import AsyncGripper, Gripper, ReconnectPolicy
 from pywsg.client.reconnect import Backoff
+from pywsg.device import ManualClock
 from pywsg.errors import ConnectionLostError
 from pywsg.protocol import SystemFlag
 from pywsg.testing import SimThread
@@ -22,35 +23,27 @@ POLICY = ReconnectPolicy(attempts=ATTEMPTS, delay=0.05, max_delay=1.0)  # stable
 DROP_AFTER = 0.3  # s: the gripper resets every connection this long after accepting it
 
 
-class Clock:
-    def __init__(self) -> None:
-        self.t = 100.0
-
-    def __call__(self) -> float:
-        return self.t
-
-
 def test_backoff_continues_after_a_short_connection_and_restarts_after_a_stable_one() -> None:
-    clock = Clock()
+    clock = ManualClock(100.0)
     b = Backoff(ReconnectPolicy(attempts=3, delay=0.2, max_delay=0.5, stable_after=5.0), clock)
     b.connected()
-    clock.t += 0.3
+    clock.advance(0.3)
     b.lost()  # short-lived: the schedule goes on where it stood
     assert b.next_delay() == 0.2
     b.connected()
-    clock.t += 0.3
+    clock.advance(0.3)
     b.lost()
     assert b.next_delay() == 0.4
     b.connected()
-    clock.t += 0.3
+    clock.advance(0.3)
     b.lost()
     assert b.next_delay() == 0.5  # capped at max_delay
     b.connected()
-    clock.t += 0.3
+    clock.advance(0.3)
     b.lost()
     assert b.next_delay() is None and b.gave_up  # 3 attempts used: give up
     b.connected()  # the user connected again: a full budget
-    clock.t += 6.0
+    clock.advance(6.0)
     b.lost()  # after a stable connection the schedule restarts
     assert b.next_delay() == 0.2 and not b.gave_up
 
