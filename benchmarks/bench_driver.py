@@ -1,6 +1,7 @@
 """Driver round trips against `wsg sim` on loopback, each beside a raw client of the same kind.
 
     .venv/bin/python benchmarks/bench_driver.py [--seconds 0.5] [--rounds 10] [--uvloop]
+    .venv/bin/python benchmarks/bench_driver.py --against OLD/src   # before/after in one run
 
 Prints, for Get Gripper State (41h):
 - blocking: a raw socket client (sendall + recv of the same bytes) vs ``Gripper.gripper_state()``;
@@ -11,6 +12,11 @@ the clients (each round runs every client once, in the same order, against the s
 best round and the median round of each are reported (the machine is shared), the ratios from both,
 and the median of the per-round ratios (a driver compared with the raw client of the same round,
 seconds apart, so slow drifts of the machine's load cancel out).
+
+``--against DIR``: before and after in one run. The ``pywsg`` package in DIR (e.g. ``src`` of an older
+checkout) is loaded beside this one as ``pywsg_before``; every round runs the raw clients and both
+drivers, the order of before/after alternating, against the same sim, and the medians of the per-round
+ratios driver/raw are printed for each.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from pywsg import AsyncGripper, Gripper
 from pywsg.client import calls
@@ -173,6 +180,58 @@ async def driver_async(port: int, seconds: float, streams: bool = False) -> Resu
     return Result("AsyncGripper.gripper_state()" + (" + 4 streams @10 ms" if streams else ""), lat, wall)
 
 
+def load_before(src: str) -> Any:
+    """The pywsg package in ``src`` as a second package, ``pywsg_before`` (its imports are relative)."""
+    import importlib
+    import shutil
+    import tempfile
+
+    tmp = tempfile.mkdtemp(prefix="bench-driver-")
+    shutil.copytree(Path(src) / "pywsg", Path(tmp) / "pywsg_before")
+    sys.path.insert(0, tmp)
+    return importlib.import_module("pywsg_before")
+
+
+async def driver_async_of(cls: Any, port: int, seconds: float) -> Result:
+    async with cls(f"tcp://127.0.0.1:{port}", timeout=10) as g:
+        await g.gripper_state()
+        lat, wall = await atimed(g.gripper_state, seconds)
+    return Result(cls.__module__.split(".")[0], lat, wall)
+
+
+def driver_blocking_of(cls: Any, port: int, seconds: float) -> Result:
+    with cls(f"tcp://127.0.0.1:{port}", timeout=10) as g:
+        g.gripper_state()
+        lat, wall = timed(g.gripper_state, seconds)
+    return Result(cls.__module__.split(".")[0], lat, wall)
+
+
+def compare(port: int, args: argparse.Namespace, runner: Callable[..., Any]) -> None:
+    """Before (``--against``) and after in the same rounds; each driver beside the raw client of its round."""
+    import pywsg
+
+    mods = {"before": load_before(args.against), "after": pywsg}
+    ratios: dict[str, list[tuple[float, float]]] = {}
+    for i in range(args.rounds):
+        for name in (("before", "after") if i % 2 == 0 else ("after", "before")):
+            mod = mods[name]
+            for kind in ("blocking", "asyncio"):
+                if kind == "blocking":
+                    r = raw_blocking(port, args.seconds)
+                    d = driver_blocking_of(mod.Gripper, port, args.seconds)
+                else:
+                    r = runner(raw_async(port, args.seconds))
+                    d = runner(driver_async_of(mod.AsyncGripper, port, args.seconds))
+                time.sleep(0.05)  # the sim closes the last connection before the next one comes
+                ratios.setdefault(f"{kind} {name}", []).append((r.rate / d.rate, d.p50 / r.p50))
+    print(f"# driver before ({args.against}) and after, 41h Get Gripper State, {args.rounds} rounds x "
+          f"{args.seconds:g} s, before/after alternating, {os.cpu_count()} CPUs, "
+          f"load average {os.getloadavg()[0]:.2f}")
+    for key, v in ratios.items():
+        print(f"{key:16s} raw/driver rate ratio {statistics.median(r for r, _ in v):.2f}x, "
+              f"p50 ratio {statistics.median(p for _, p in v):.2f}x (medians of {len(v)} rounds)")
+
+
 def best(results: list[Result]) -> Result:
     return max(results, key=lambda r: r.rate)
 
@@ -187,6 +246,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=10)
     ap.add_argument("--uvloop", action="store_true", help="run the asyncio clients on uvloop")
     ap.add_argument("--sim-uvloop", action="store_true", help="run wsg sim on uvloop (default: stock asyncio)")
+    ap.add_argument("--against", default="", help="a src dir holding an older pywsg: before/after in one run")
     args = ap.parse_args()
     port = free_port()
     proc = start_sim(port, args.sim_uvloop)
@@ -196,6 +256,9 @@ def main() -> None:
 
         runner = uvloop.run
     try:
+        if args.against:
+            compare(port, args, runner)
+            return
         rows: dict[str, list[Result]] = {}
         for _ in range(args.rounds):
             for r in (raw_blocking(port, args.seconds), driver_blocking(port, args.seconds),
