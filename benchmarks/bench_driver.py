@@ -216,13 +216,16 @@ def compare(port: int, args: argparse.Namespace, runner: Callable[..., Any]) -> 
         for name in (("before", "after") if i % 2 == 0 else ("after", "before")):
             mod = mods[name]
             for kind in ("blocking", "asyncio"):
+                # a pause after each client: the sim closes the last connection before the next one comes
                 if kind == "blocking":
                     r = raw_blocking(port, args.seconds)
+                    time.sleep(0.05)
                     d = driver_blocking_of(mod.Gripper, port, args.seconds)
                 else:
                     r = runner(raw_async(port, args.seconds))
+                    time.sleep(0.05)
                     d = runner(driver_async_of(mod.AsyncGripper, port, args.seconds))
-                time.sleep(0.05)  # the sim closes the last connection before the next one comes
+                time.sleep(0.05)
                 ratios.setdefault(f"{kind} {name}", []).append((r.rate / d.rate, d.p50 / r.p50))
     print(f"# driver before ({args.against}) and after, 41h Get Gripper State, {args.rounds} rounds x "
           f"{args.seconds:g} s, before/after alternating, {os.cpu_count()} CPUs, "
