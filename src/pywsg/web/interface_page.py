@@ -138,10 +138,23 @@ class InterfaceStore:
             return {k: v for k, v in errors.items() if k in changes} or errors
         new = InterfaceConfig(**merged)
         if self.path is not None:
-            _write_atomic(self.path, json.dumps(dataclasses.asdict(new), indent=2) + "\n")
+            # Keep what others store in the same file (the PROFIBUS slave's profibus_address_locked).
+            kept = _read_other_keys(self.path)
+            _write_atomic(self.path, json.dumps({**kept, **dataclasses.asdict(new)}, indent=2) + "\n")
         self.config = new
         self.problem = None
         return {}
+
+
+def _read_other_keys(path: Path) -> dict[str, Any]:
+    """The file's entries that are not InterfaceConfig fields ({} when it cannot be read)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {k: v for k, v in data.items() if k not in InterfaceConfig.__dataclass_fields__}
 
 
 def _write_atomic(path: Path, text: str) -> None:
