@@ -210,17 +210,21 @@ class ProfibusAdapter:
                 continue
             if self.search is not None:
                 self.search.heard(now)
+            min_tsdr = slave.min_tsdr          # the one in force when the request came (not a new Set_Prm's)
             response = slave.handle(ev, now)
             if response is not None:
-                self._answer(response, now)
+                self._answer(response, now, min_tsdr)
         self._arm_watchdog()
 
     # --- answering ---------------------------------------------------------------------------
-    def _answer(self, response: bytes, received: float) -> None:
-        """Send ``response`` no earlier than min TSDR and no later than MaxTsdr after ``received``."""
+    def _answer(self, response: bytes, received: float, min_tsdr: int) -> None:
+        """Send ``response`` no earlier than ``min_tsdr`` and no later than MaxTsdr (bit times) after
+        ``received``. A master that sets min TSDR near or above MaxTsdr gets its min TSDR, with the
+        GSD's window beyond the standard's smallest min TSDR (11 bit times) still allowed after it."""
         rate = self.baudrate
-        self._send_at(response, received + self.slave.min_tsdr / rate,
-                      received + facts().max_tsdr.get(rate, 0xFFFF) / rate)
+        max_tsdr = facts().max_tsdr.get(rate, 0xFFFF)
+        due = received + min_tsdr / rate
+        self._send_at(response, due, max(received + max_tsdr / rate, due + (max_tsdr - 11) / rate))
 
     def _send_at(self, response: bytes, due: float, latest: float) -> None:
         remaining = due - time.monotonic()
