@@ -11,7 +11,9 @@ DP slave keeps it (IEC 61158-4-3):
   there is.
 - **Station delay.** An answer starts no earlier than the master's min TSDR (Set_Prm, in bit times)
   after the read that completed its request, on any event loop: uvloop rounds timers to whole
-  milliseconds, so the last 2 ms are waited with ``time.sleep`` (never early). An answer that could
+  milliseconds, so the last 2 ms are waited busily (never early; a sleep would wake up late on a
+  loaded CPU). The standard's min TSDR is 11..255 bit times: at 19.2 kbit/s and above that wait is
+  under 1.2 ms per answer. An answer that could
   not start within the GSD's MaxTsdr for the rate is not sent at all (counted in
   :attr:`ProfibusAdapter.late_responses`): the master has given up on it and repeats the request,
   and a late answer would only collide with that.
@@ -52,7 +54,7 @@ DEFAULT_BAUDRATE = 19200
 #: does not see sub-millisecond gaps (the kernel, a USB adapter's latency timer and a busy CPU all
 #: delay a read by up to about that much).
 RX_SLACK_S = 0.001
-#: Below this many seconds an answer's delay is waited with time.sleep, not an event-loop timer.
+#: Below this many seconds an answer's delay is waited busily, not with an event-loop timer.
 PRECISE_WAIT_S = 0.002
 
 _STATE_TEXT = {
@@ -233,8 +235,8 @@ class ProfibusAdapter:
             assert self._loop is not None
             self._loop.call_later(remaining - PRECISE_WAIT_S / 2, self._send_at, response, due, latest)
             return
-        if remaining > 0:
-            time.sleep(remaining)      # clock_nanosleep: never early, at most a few 10 µs late
+        while time.monotonic() < due:
+            pass   # the last ≤ 2 ms: a busy wait, as a sleep's wake-up comes ms late on a loaded CPU
         if time.monotonic() > latest:
             self.late_responses += 1   # the master has given up on it: a late answer only collides
             log.debug("PROFIBUS %s: answer %.1f ms after MaxTsdr dropped", self.path,
