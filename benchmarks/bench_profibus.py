@@ -94,9 +94,10 @@ def responder(cmd: list[str], ready: str) -> Iterator[None]:
 
 
 def sim_cmd(path: str, rate: int, loop: str, rt: bool) -> list[str]:
-    return (["chrt", "-f", "20"] if rt else []) + [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", "off",
-            "--udp-port", "off", "--serial", "off", "--web-port", "off", "--profibus", path,
-            "--profibus-baudrate", str(rate), "--uvloop" if loop == "uvloop" else "--no-uvloop"]
+    return (["chrt", "-f", "20"] if rt else []) + [
+        sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--tcp-port", "off",
+        "--udp-port", "off", "--serial", "off", "--web-port", "off", "--profibus", path,
+        "--profibus-baudrate", str(rate), "--uvloop" if loop == "uvloop" else "--no-uvloop"]
 
 
 def first_byte(fd: int, request: bytes) -> float | None:
