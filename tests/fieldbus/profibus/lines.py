@@ -9,6 +9,7 @@ its own, so the master's clock in the test thread measures it from outside.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import select
 import shutil
@@ -125,6 +126,9 @@ def ask(fd: int, request: bytes, timeout: float = 3.0, *, retries: int = 0) -> t
         answer, first = ask(fd, request, timeout)
         if answer:
             return answer, first
+        while not silent(fd, 0.05):             # a straggler is no answer to the repeat
+            with contextlib.suppress(BlockingIOError):
+                os.read(fd, 512)
     t0 = time.monotonic()
     os.write(fd, request)
     ready, _, _ = select.select([fd], [], [], timeout)

@@ -13,10 +13,10 @@ DP slave keeps it (IEC 61158-4-3):
   after the read that completed its request, on any event loop: uvloop rounds timers to whole
   milliseconds, so the last 2 ms are waited busily (never early; a sleep would wake up late on a
   loaded CPU). The standard's min TSDR is 11..255 bit times: at 19.2 kbit/s and above that wait is
-  under 1.2 ms per answer. An answer that could
-  not start within the GSD's MaxTsdr for the rate is not sent at all (counted in
-  :attr:`ProfibusAdapter.late_responses`): the master has given up on it and repeats the request,
-  and a late answer would only collide with that.
+  under 1.2 ms per answer. On a real port an answer that could not start within the GSD's MaxTsdr
+  for the rate is not sent at all (counted in :attr:`ProfibusAdapter.late_responses`): the master
+  has given up on it and repeats the request, and a late answer would only collide with that. On a
+  pty (one master, no bus) it is still sent.
 - **Watchdog.** One timer, re-armed whenever the slave's deadline moves earlier (a Set_Prm that
   shrinks it); expiry is also judged when a telegram arrives (:meth:`~.dp.DpSlave.handle`).
 - **Baud rate.** A fixed rate, or (``baudrate=None``, a real port only) detection: the slave listens
@@ -237,8 +237,10 @@ class ProfibusAdapter:
             return
         while time.monotonic() < due:
             pass   # the last ≤ 2 ms: a busy wait, as a sleep's wake-up comes ms late on a loaded CPU
-        if time.monotonic() > latest:
-            self.late_responses += 1   # the master has given up on it: a late answer only collides
+        if time.monotonic() > latest and self._line.serial is not None:
+            # On a line the master has given up on it and repeats: a late answer would collide with
+            # that. A pty has one master and no bus: there it is still sent.
+            self.late_responses += 1
             log.debug("PROFIBUS %s: answer %.1f ms after MaxTsdr dropped", self.path,
                       1000 * (time.monotonic() - latest))
             return
