@@ -35,6 +35,8 @@ def test_a_good_telegram_locks_and_silence_starts_the_search_again() -> None:
     s = BaudSearch([9600, 19200, 45450], now=0.0, dwell_s=0.25, hold_s=3.0)
     s.tick(0.25)
     s.heard(0.3)
+    assert not s.locked                               # one telegram could be a straggler
+    s.heard(0.31)
     assert s.locked and s.rate == 19200
     assert s.tick(3.2) is None                       # 2.9 s of silence: still locked
     assert s.tick(3.2, hold_s=0.5) == 45450          # with a 0.5 s watchdog: lost, from the top

@@ -5,6 +5,9 @@ Bitrate (automatically detected)").
 The search runs from the highest declared rate down, as DP slave ASICs do; at each rate the slave
 listens ``dwell_s`` seconds. Only a telegram whose delimiters, length and FCS are right counts: at a
 wrong rate a UART reads garbage (mostly parity errors, dropped), and garbage does not pass an FCS.
+Two such telegrams at one rate lock it (the caller flushes the port's input at each switch, so
+bytes received at the rate before are never credited to the new one; the second telegram guards
+against the one that slipped in between).
 Once locked, ``hold_s`` seconds without such a telegram (the watchdog time when Set_Prm turned the
 watchdog on) start the search again. Times are monotonic seconds passed in by the caller.
 """
@@ -18,6 +21,8 @@ from collections.abc import Iterable
 DWELL_S = 0.25
 #: Seconds without a good telegram before a locked slave searches again (watchdog off).
 HOLD_S = 3.0
+#: Good telegrams at one rate that lock it.
+LOCK_AFTER = 2
 
 
 class BaudSearch:
@@ -34,6 +39,7 @@ class BaudSearch:
         self.index = 0
         self.locked = False
         self.searches = 1          # times the search (re)started
+        self._good = 0             # good telegrams at this rate since listening at it
         self._since = now          # listening at this rate since
         self._heard = now          # last good telegram
 
@@ -43,9 +49,11 @@ class BaudSearch:
         return self.rates[self.index]
 
     def heard(self, now: float) -> None:
-        """A good telegram was read at :attr:`rate`: lock to it (or stay locked)."""
+        """A good telegram was read at :attr:`rate`: the second one locks it (or it stays locked)."""
         self._heard = now
-        self.locked = True
+        self._good += 1
+        if self._good >= LOCK_AFTER:
+            self.locked = True
 
     def tick(self, now: float, hold_s: float | None = None) -> int | None:
         """The rate to switch to now, or None to stay. ``hold_s`` overrides the silence allowed
@@ -61,4 +69,5 @@ class BaudSearch:
         else:
             self.index = (self.index + 1) % len(self.rates)
         self._since = now
+        self._good = 0
         return self.rate

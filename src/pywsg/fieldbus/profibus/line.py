@@ -298,11 +298,13 @@ class ProfibusAdapter:
         self._baud_timer = self._loop.call_later(self.search.dwell_s / 2, self._on_baud_timer)
 
     def _set_rate(self, rate: int) -> None:
-        """Listen at ``rate`` from now on (pyserial rewrites the termios: parity checking again)."""
+        """Listen at ``rate`` from now on (pyserial rewrites the termios: parity checking again), and
+        drop what the port received at the rate before."""
         try:
             if self._line.serial is not None and self._line.serial.baudrate != rate:
                 self._line.serial.baudrate = rate
                 _check_parity(self._fd)
+                termios.tcflush(self._fd, termios.TCIFLUSH)
         except (OSError, ValueError) as exc:
             log.warning("PROFIBUS %s: cannot set %d bit/s: %s", self.path, rate, exc)
             return
