@@ -137,24 +137,21 @@ class InterfaceStore:
         if errors:
             return {k: v for k, v in errors.items() if k in changes} or errors
         new = InterfaceConfig(**merged)
-        if self.path is not None:
-            # Keep what others store in the same file (the PROFIBUS slave's profibus_address_locked).
-            kept = _read_other_keys(self.path)
-            _write_atomic(self.path, json.dumps({**kept, **dataclasses.asdict(new)}, indent=2) + "\n")
+        if self.path is not None:   # keys this page does not own (the PROFINET device's I&M data) stay
+            _write_atomic(self.path, json.dumps({**_others(self.path), **dataclasses.asdict(new)}, indent=2) + "\n")
         self.config = new
         self.problem = None
         return {}
 
 
-def _read_other_keys(path: Path) -> dict[str, Any]:
-    """The file's entries that are not InterfaceConfig fields ({} when it cannot be read)."""
+def _others(path: Path) -> dict[str, Any]:
+    """The keys of the file as it is now that are not :class:`InterfaceConfig` fields."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return {}
-    if not isinstance(data, dict):
-        return {}
-    return {k: v for k, v in data.items() if k not in InterfaceConfig.__dataclass_fields__}
+    return {k: v for k, v in data.items() if k not in InterfaceConfig.__dataclass_fields__} \
+        if isinstance(data, dict) else {}
 
 
 def _write_atomic(path: Path, text: str) -> None:
