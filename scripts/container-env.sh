@@ -22,6 +22,16 @@ LOCK=$DIR/lock
 STAMP=$DIR/image   # holds the tag once the image is built; "failed" when the build failed
 LOG=$DIR/build.log
 PODMAN=(podman --runtime runc --cgroup-manager=cgroupfs)
+# What the tests give podman (CONTAINERS_CONF) and `podman kube play` cannot take as options: runc (crun
+# refuses hybrid cgroups), cgroupfs, and ulimits below the machine's hard limits (podman's defaults are
+# above them on such machines and setrlimit is refused). docs/container.md, "Podman on CI machines".
+cat >"$DIR/containers.conf" <<'CONF'
+[containers]
+default_ulimits = ["nofile=4096:4096", "nproc=4096:4096"]
+[engine]
+runtime = "runc"
+cgroup_manager = "cgroupfs"
+CONF
 
 install_tools() {
     local need=()
