@@ -10,6 +10,8 @@ or Secrets. From the same manifest this writes:
   the StatefulSet would (Podman makes a named volume of each);
 - the Secret's data as the JSON that ``podman secret create NAME -`` takes (``--secret-json FILE``);
   ``secretKeyRef`` then finds it by name;
+- httpGet probes of /healthz as the image's ``wsg-healthcheck`` command (Podman makes ``curl`` commands of
+  them, and the image has no curl);
 - with ``--publish BASE``, each pod's container ports on the host's loopback: gripper i's port
   number k (in the order the manifest lists them) on ``BASE + 10*i + k`` (a Service's role on one machine).
 
@@ -75,6 +77,9 @@ def _pods(sts: dict[str, Any], replicas: int | None, publish: int | None, prefix
         for container in pod_spec["containers"]:
             if image:
                 container["image"] = image
+            for probe in ("readinessProbe", "livenessProbe", "startupProbe"):
+                if "httpGet" in container.get(probe, {}):
+                    container[probe]["exec"] = {"command": _http_probe(container[probe].pop("httpGet"))}
             for env in container.get("env", []):
                 ref = (env.get("valueFrom") or {}).get("secretKeyRef")
                 if ref is not None:
@@ -88,6 +93,15 @@ def _pods(sts: dict[str, Any], replicas: int | None, publish: int | None, prefix
         out.append({"apiVersion": "v1", "kind": "Pod",
                     "metadata": {"name": pod_name, "labels": labels}, "spec": pod_spec})
     return out
+
+
+def _http_probe(get: dict[str, Any]) -> list[str]:
+    """An httpGet probe of /healthz as a command: Podman runs every probe as a command in the container and
+    makes ``curl`` of an httpGet probe, which the image does not have; the image's ``wsg-healthcheck`` asks
+    the same route. (Podman 4.3 also splits an exec probe's words at spaces: a one-word script survives.)"""
+    if get.get("path") != "/healthz":
+        raise ValueError(f"httpGet probe of {get.get('path')!r}: only /healthz has a command form (wsg-healthcheck)")
+    return ["wsg-healthcheck", str(get["port"])]
 
 
 def main(argv: list[str] | None = None) -> int:

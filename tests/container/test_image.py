@@ -135,7 +135,7 @@ def test_image_is_labelled_runs_as_non_root_and_has_a_health_check(image: str) -
     assert labels["org.opencontainers.image.licenses"] == "MIT"
     assert "org.opencontainers.image.source" in labels
     assert config["User"] == "wsg"
-    assert "/healthz" in " ".join(info["Healthcheck"]["Test"])  # type: ignore[index]
+    assert "wsg-healthcheck" in info["Healthcheck"]["Test"]  # type: ignore[index]
     assert config["Entrypoint"] == ["wsg", "sim"]
 
 
