@@ -10,6 +10,8 @@ or Secrets. From the same manifest this writes:
   the StatefulSet would (Podman makes a named volume of each);
 - the Secret's data as the JSON that ``podman secret create NAME -`` takes (``--secret-json FILE``);
   ``secretKeyRef`` then finds it by name;
+- ``$(VAR)`` references in environment values expanded, and ``fieldRef: metadata.name`` given the pod's
+  name, as Kubernetes does (Podman 4.3 leaves the text as it is);
 - httpGet probes of /healthz as the image's ``wsg-healthcheck`` command (Podman makes ``curl`` commands of
   them, and the image has no curl);
 - with ``--publish BASE``, each pod's container ports on the host's loopback: gripper i's port
@@ -31,6 +33,7 @@ import argparse
 import base64
 import copy
 import json
+import re
 import sys
 from typing import Any
 
@@ -84,6 +87,11 @@ def _pods(sts: dict[str, Any], replicas: int | None, publish: int | None, prefix
                 ref = (env.get("valueFrom") or {}).get("secretKeyRef")
                 if ref is not None:
                     ref["name"] = prefix + ref["name"]
+                field = (env.get("valueFrom") or {}).get("fieldRef", {}).get("fieldPath")
+                if field == "metadata.name":   # the name Kubernetes gives the pod, not the prefixed one
+                    env.pop("valueFrom")
+                    env["value"] = f"{name}-{i}"
+            _expand(container.get("env", []))
             if publish is not None:
                 for k, port in enumerate(container.get("ports", [])):
                     port["hostPort"] = publish + 10 * i + k
@@ -93,6 +101,18 @@ def _pods(sts: dict[str, Any], replicas: int | None, publish: int | None, prefix
         out.append({"apiVersion": "v1", "kind": "Pod",
                     "metadata": {"name": pod_name, "labels": labels}, "spec": pod_spec})
     return out
+
+
+def _expand(env: list[dict[str, Any]]) -> None:
+    """Kubernetes' ``$(VAR)`` references to variables defined earlier in the list (Podman 4.3 keeps them as
+    text); ``$$`` is a literal ``$``, an unknown reference stays as it is, as in Kubernetes."""
+    known: dict[str, str] = {}
+    for item in env:
+        if "value" in item:
+            item["value"] = re.sub(r"\$\$|\$\(([A-Za-z_][A-Za-z0-9_.-]*)\)",
+                                   lambda m: "$" if m.group(0) == "$$" else known.get(m.group(1), m.group(0)),
+                                   str(item["value"]))
+            known[item["name"]] = item["value"]
 
 
 def _http_probe(get: dict[str, Any]) -> list[str]:

@@ -9,6 +9,8 @@ import base64
 import json
 import subprocess
 import sys
+import urllib.error
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -106,3 +108,21 @@ def test_probes_are_the_health_route(cell: Cell) -> None:
     check = info["Config"].get("Healthcheck") or {}
     assert "wsg-healthcheck" in check.get("Test", []), check
     assert podman("healthcheck", "run", f"{cell.prefix}wsg-0-gripper", check=False).returncode == 0
+
+
+def test_web_interface_answers_to_the_pod_and_service_names(cell: Cell) -> None:
+    """WSG_SIM_WEB_ALLOWED_HOSTS = "$(POD_NAME) $(POD_NAME).wsg": a cell test reaches gripper 1 as
+    http://wsg-1:8080 or http://wsg-1.wsg:8080; another name is refused (the DNS-rebinding guard)."""
+    def status(host: str) -> int:
+        req = urllib.request.Request(cell.web(1) + "/api/world", headers={
+            "Host": host, "Authorization": f"Bearer {PASSWORD}"})
+        try:
+            with urllib.request.urlopen(req, timeout=10) as reply:
+                return int(reply.status)
+        except urllib.error.HTTPError as exc:
+            return int(exc.code)
+
+    assert status("wsg-1:8080") == 200
+    assert status("wsg-1.wsg:8080") == 200
+    assert status("wsg-0:8080") == 400
+    assert status("rebind.example:8080") == 400
