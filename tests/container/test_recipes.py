@@ -42,6 +42,29 @@ def wait_health_status(name: str, timeout: float = 60) -> None:
         time.sleep(0.5)
 
 
+def test_podman_run_recipe(image: str, cleanup: list[tuple[str, ...]]) -> None:
+    """The `podman run` line and the `wsg world` line of "Running it", host ports and name substituted."""
+    line = next(ln.strip() for ln in DOC.replace("\\\n", " ").splitlines() if ln.strip().startswith("podman run -d"))
+    base = free_base(2)
+    name = unique("run")
+    line = (line.replace("--name gripper", f"--name {name}").replace("pywsg-sim:0.3.0", image)
+            .replace("127.0.0.1:1000:", f"127.0.0.1:{base}:").replace("127.0.0.1:1500:", f"127.0.0.1:{base}:")
+            .replace("127.0.0.1:8080:", f"127.0.0.1:{base + 1}:"))
+    cleanup.append(("rm", "-f", "-v", name))
+    podman(*shlex.split(line)[1:])
+    wait_healthy(f"http://127.0.0.1:{base + 1}")
+    world = next(ln.strip() for ln in DOC.splitlines() if ln.strip().startswith("wsg world --sim"))
+    argv = shlex.split(world.replace("127.0.0.1:8080", f"127.0.0.1:{base + 1}"))
+    r = subprocess.run([sys.executable, "-c", "from pywsg.cli.main import main; main()", *argv[1:]],
+                       capture_output=True, text=True, timeout=60, env=dict(os.environ, WSG_NO_ENV="1"))
+    assert r.returncode == 0 and "part of 22 mm" in r.stdout, r.stdout + r.stderr
+    with Gripper(f"tcp://127.0.0.1:{base}", timeout=10) as g:
+        g.home()
+        g.grip(22.0, speed=200)
+    with Gripper(f"udp://127.0.0.1:{base}?reply_port=0", timeout=10) as g:
+        assert g.width() == pytest.approx(22.0, abs=0.5)
+
+
 def test_github_actions_service(image: str, cleanup: list[tuple[str, ...]]) -> None:
     """`services.gripper` as the runner starts it: docker create with env, ports and options."""
     job = yaml.safe_load(yaml_block("### GitHub Actions"))["jobs"]["test"]

@@ -15,7 +15,7 @@ import pytest
 from pywsg import Gripper
 from pywsg.protocol import GripperState
 
-from .conftest import CONF, podman, pytestmark
+from .conftest import CONF, ROOT, podman, pytestmark
 
 __all__ = ["pytestmark"]
 
@@ -70,3 +70,14 @@ def test_container_fixture_serves_a_gripper_with_its_world(image: str, tc_settin
         assert sim.world.state()["gripper_state"] == "HOLDING"
         assert sim.url.startswith("tcp://127.0.0.1:")   # published on loopback only
     assert podman("container", "exists", name, check=False).returncode != 0   # removed
+
+
+def test_the_documented_example_runs(image: str, tc_settings: None) -> None:
+    """docs/container.md's testcontainers example, as written but for the image's name."""
+    doc = (ROOT / "docs" / "container.md").read_text()
+    start = doc.index("### testcontainers (Python)")
+    block = doc[doc.index("```python\n", start) + 10 : doc.index("```\n", doc.index("```python\n", start) + 10)]
+    assert '"pywsg-sim:0.3.0"' in block
+    namespace: dict[str, object] = {}
+    exec(compile(block.replace('"pywsg-sim:0.3.0"', repr(image)), "docs/container.md", "exec"), namespace)
+    namespace["test_pick"]()  # type: ignore[operator]
