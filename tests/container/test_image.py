@@ -88,7 +88,7 @@ def split(data: bytes) -> tuple[int, int, bytes]:
     """(command ID, status code, rest of the payload) of one reply frame, its CRC checked."""
     assert data[:3] == b"\xaa\xaa\xaa", data.hex()
     size = struct.unpack_from("<H", data, 4)[0]
-    assert crc16(data[: 6 + size + 2]) == 0, "CRC over a whole frame gives 0 (SPEC-NOTES)"
+    assert crc16(data[: 6 + size + 2]) == 0, "the CRC over a whole frame, checksum included, is 0 (000 App. D)"
     return data[3], struct.unpack_from("<H", data, 6)[0], data[8 : 6 + size]
 
 
