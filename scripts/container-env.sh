@@ -44,8 +44,12 @@ install_tools() {
         local sudo=""
         [ "$(id -u)" -eq 0 ] || sudo="sudo"
         echo "installing Debian packages: ${need[*]}"
-        $sudo apt-get -o DPkg::Lock::Timeout=600 update -qq
-        DEBIAN_FRONTEND=noninteractive $sudo apt-get -o DPkg::Lock::Timeout=600 install -y -qq "${need[@]}" >/dev/null
+        # test.sh may be running apt-get beside this: wait for the lock; update the lists only when needed
+        local apt=(apt-get -o DPkg::Lock::Timeout=600)
+        if ! DEBIAN_FRONTEND=noninteractive $sudo "${apt[@]}" install -y -qq "${need[@]}" >/dev/null; then
+            $sudo "${apt[@]}" update -qq
+            DEBIAN_FRONTEND=noninteractive $sudo "${apt[@]}" install -y -qq "${need[@]}" >/dev/null
+        fi
     fi
 }
 
