@@ -5,9 +5,7 @@ of the veth pair (tests/fieldbus/profinet/conftest.py)."""
 
 from __future__ import annotations
 
-import sys
-
-from ..fieldbus.profinet.conftest import CONTROLLER, DEVICE_IP, STATION, Wire, wire
+from ..fieldbus.profinet.conftest import DEVICE_IP, STATION, WSG, Wire, wire
 from .conftest import podman, pytestmark, unique
 
 __all__ = ["pytestmark", "wire"]
@@ -24,9 +22,11 @@ def test_profinet_device_in_a_container_answers_a_controller_outside(image: str,
         found = wire.controller("identify", STATION)
         assert found["name"] == STATION and found["ip"] == DEVICE_IP, found
         assert (found["vendor_id"], found["device_id"]) == (0x02A2, 0x0001)   # 002 §2.2
-        # an AR from pywsg's GSDML and 002 App. D's gripping cycle, over the container's raw socket
-        done = wire.controller(argv=[sys.executable, str(CONTROLLER), wire.iface, "scl", STATION, "1", "16"],
-                               timeout=90)
+        # 002 App. D's gripping cycle as the user runs it, wsg plc-demo over profinet:// (an AR from pywsg's
+        # GSDML), against the container's raw socket
+        url = f"profinet://{wire.iface}/{STATION}"
+        done = wire.controller(argv=[*WSG, "plc-demo", "--url", url, "--cycles", "1", "--json"], timeout=90)
+        assert done["event"] == "done" and done["ok"] is True, done
         assert done["cycles"] == 1 and done["holds"] == 1 and done["errors"] == 0, done
         assert "profinet" in podman("logs", name).stdout
     finally:
