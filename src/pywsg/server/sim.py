@@ -120,6 +120,9 @@ def bind_error(what: str, host: str, port: int, option: str, exc: OSError) -> Si
     if exc.errno == errno.EADDRINUSE:
         text += (f" (another program, perhaps another `wsg sim`, has port {port}): choose another with "
                  f"{option} PORT, or {option} 0 for any free port")
+    elif exc.errno == errno.EACCES and 0 < port < 1024:
+        text += (" (ports below 1024 need root or the sysctl net.ipv4.ip_unprivileged_port_start; in a "
+                 "container: --sysctl net.ipv4.ip_unprivileged_port_start=0, see docs/container.md)")
     return SimError(text)
 
 
