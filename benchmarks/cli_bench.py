@@ -15,7 +15,7 @@ from pathlib import Path
 import dpkt
 
 from pywsg.capture.reader import frames_from_capture
-from pywsg.cli.editor import parse_payload
+from pywsg.protocol.editor import parse_payload
 from pywsg.protocol import Frame, Status
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, for tests/

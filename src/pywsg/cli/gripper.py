@@ -376,7 +376,7 @@ def finger(ctx: click.Context, /, n: int, what: str, mode: str | None, **kw: Any
 @click.pass_context
 def loop_cmd(ctx: click.Context, /, payload: tuple[str, ...], **kw: Any) -> None:
     """Loop-back test (06h): the gripper returns PAYLOAD (editor syntax, as for `wsg send`; default "pywsg")."""
-    from .editor import PayloadSyntaxError, parse_payload
+    from ..protocol.editor import PayloadSyntaxError, parse_payload
 
     try:
         data = parse_payload(payload) if payload else b"pywsg"
