@@ -145,10 +145,14 @@ def test_saved_log_reads_back_as_jsonl_and_pcapng(sim: SimThread, cmdr: Cmdr, tm
     cmdr.http.post("/api/disconnect")  # one TCP client at a time: the replay's turn
     report = sim.replay(pcapng)
     assert report.matched and report.steps == 2, [d.line() for d in report.differences]
+    # the recording ends without 07h, so the replay's TCP close FAST STOPs the sim (000 §1.4.2): clear it
+    if sim.call(lambda: sim.gripper.snapshot().fast_stop):
+        sim.call(sim.gripper.acknowledge_fast_stop)
 
 
 def test_closing_the_page_announces_the_disconnect(sim: SimThread, tap: WireTap, cmdr: Cmdr) -> None:
     """000 §3.1.2 / §1.4.2: the last page gone, the Commander sends 07h and the gripper stays out of FAST STOP."""
+    assert not sim.call(lambda: sim.gripper.snapshot().fast_stop)
     cmdr.connect(sim.url)
     cookie = "; ".join(f"{k}={v}" for k, v in cmdr.http.cookies.items())
     with ws_connect(cmdr.url.replace("http", "ws") + "/ws", additional_headers={"Cookie": cookie}) as ws:
