@@ -176,6 +176,7 @@
   // -- live updates ------------------------------------------------------------------------------
   let logSeq = null, resultSeq = null, socket = null, retry = 250;
   const byCommand = {};  // command name -> the output showing its last result
+  const latest = {};  // command name -> its newest result seen on the WebSocket
   function live() {
     const q = [];
     if (logSeq !== null) q.push("log=" + logSeq);
@@ -189,6 +190,7 @@
       if (m.log) { addRows(m.log); logSeq = m.log[m.log.length - 1].seq; }
       for (const r of m.results || []) {
         resultSeq = r.seq;
+        latest[r.command] = r;
         setResult(byCommand[r.command], r);
         if (r.final && r.status !== "E_SUCCESS") announce(r.command + ": " + r.status);
       }
@@ -208,7 +210,8 @@
     const r = await api("POST", "/api/command/" + key, values || {});
     if (!r.ok) { failure(out, r); return r; }
     byCommand[r.data.command] = out;
-    setResult(out, r.data);
+    const seen = latest[r.data.command];  // a final result may have come over the WebSocket first
+    setResult(out, seen && seen.seq > r.data.seq ? seen : r.data);
     return r;
   }
   $("c-stop").addEventListener("click", function () { command("stop", {}, $("c-stop-result")); });
@@ -339,10 +342,14 @@
   $("editor-form").addEventListener("submit", async function (ev) {
     ev.preventDefault();
     const out = $("ed-result");
+    out.textContent = "sending…"; out.className = "result";
+    const since = resultSeq || 0;
     const r = await api("POST", "/api/send", { id: $("ed-id").value, payload: $("ed-payload").value });
     if (!r.ok) { failure(out, r); if (r.data.start !== undefined) echo($("ed-payload").value, r.data.start, r.data.end); return; }
     byCommand[r.data.command] = out;
-    out.textContent = "sent " + r.data.wire; out.className = "result ok";
+    const seen = latest[r.data.command];  // the reply may have come over the WebSocket before this answer
+    if (seen && seen.seq > since) setResult(out, seen);
+    else { out.textContent = "sent " + r.data.wire; out.className = "result ok"; }
   });
   decodeNow();
 
