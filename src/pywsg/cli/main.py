@@ -40,7 +40,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "State": ("state", "info", "width", "speed", "force", "gripper-state", "flags", "temp", "limits", "stats",
               "monitor"),
     "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
-    "Tools": ("commander", "send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy", "replay"),
+    "Tools": ("commander", "send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy",
+              "replay"),
 }
 
 

@@ -16,10 +16,8 @@ import pytest
 
 from pywsg.testing.host import SimThread
 
-from .commander_harness import Cmdr, WireTap
-from .conftest import wait_for
-from .test_axe import AXE, RUN_AXE
-from .test_browser import shot
+from ..conftest import wait_for
+from .harness import Cmdr, WireTap
 
 pytestmark = pytest.mark.browser
 
@@ -44,26 +42,6 @@ def cmdr() -> Iterator[Cmdr]:
         yield c
 
 
-@pytest.fixture
-def open_page(browser: Any) -> Iterator[Any]:
-    """``open_page(viewport)``: a fresh context and page on the Commander; JavaScript errors fail the test."""
-    contexts: list[Any] = []
-    errors: list[str] = []
-
-    def make(viewport: dict[str, int]) -> Any:
-        context = browser.new_context(viewport=viewport, bypass_csp=True)
-        contexts.append(context)
-        page = context.new_page()
-        page.on("pageerror", lambda exc: errors.append(str(exc)))
-        page.set_default_timeout(30_000)
-        return page
-
-    yield make
-    for context in contexts:
-        context.close()
-    assert not errors, f"JavaScript errors: {errors}"
-
-
 def connect(page: Any, cmdr: Cmdr, iface: str, **fields: str) -> None:
     """Gripper → Connect through the dialog: the interface, its fields, Connect."""
     page.goto(cmdr.url + "/")
@@ -72,8 +50,8 @@ def connect(page: Any, cmdr: Cmdr, iface: str, **fields: str) -> None:
     for field, value in fields.items():
         page.fill(f"#cd-{field}", value)
     page.click("#cd-connect")
+    page.wait_for_selector("#connect-dialog", state="hidden")  # closed on the connect's answer
     page.wait_for_selector("#c-dot.on")
-    assert not page.locator("#connect-dialog").is_visible()
 
 
 def links(sim: SimThread) -> dict[str, tuple[str, dict[str, str]]]:
@@ -185,22 +163,3 @@ def test_lost_connection_shows_at_once_and_closing_sends_07h(sim: SimThread, tap
     wait_for(lambda: cmdr.state()["connection"]["status"] == "disconnected", 10)
     assert bytes.fromhex("AA AA AA 07 00 00") in tap.data
     assert not sim.call(lambda: sim.gripper.snapshot().fast_stop)
-
-
-@pytest.mark.parametrize("viewport", [PHONE, DESKTOP], ids=["phone", "desktop"])
-def test_axe_finds_no_wcag_violation(sim: SimThread, cmdr: Cmdr, open_page: Any, viewport: dict[str, int]) -> None:
-    if not AXE.exists():
-        pytest.fail(f"{AXE} missing: scripts/test.sh installs axe-core from npm (or set PYWSG_AXE_JS)")
-    page = open_page(viewport)
-    connect(page, cmdr, "tcp", host="127.0.0.1", port=str(sim.g.tcp_port))
-    page.fill("#ed-payload", '0 0 150.0f "x')  # an error shown
-    page.wait_for_selector("#ed-payload[aria-invalid=true]")
-    page.wait_for_selector("#log-body tr")
-    if viewport is DESKTOP:
-        shot(page, "commander", doc="commander.png")
-    page.add_script_tag(path=str(AXE))
-    assert page.evaluate(RUN_AXE) == []
-    page.click("#btn-connect")  # and the Connect dialog
-    assert page.evaluate(RUN_AXE) == []
-    page.keyboard.press("Escape")
-    assert not page.locator("#connect-dialog").is_visible()

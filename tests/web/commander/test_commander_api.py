@@ -21,8 +21,8 @@ from pywsg.capture.reader import frames_from_capture, frames_from_jsonl
 from pywsg.cli.main import cli
 from pywsg.testing.host import SimThread
 
-from .commander_harness import Cmdr, WireTap
-from .conftest import wait_for
+from ..conftest import wait_for
+from .harness import Cmdr, WireTap
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +136,8 @@ def test_saved_log_reads_back_as_jsonl_and_pcapng(sim: SimThread, cmdr: Cmdr, tm
     assert r.headers["content-disposition"].startswith("attachment")
     pcapng.write_bytes(r.content)
     logged = [(f.direction, f.decoded.raw) for f in frames_from_jsonl(jsonl)]
-    captured = [("tx" if f.decoded.direction == "request" else "rx", f.decoded.raw) for f in frames_from_capture(pcapng)]
+    captured = [("tx" if f.decoded.direction == "request" else "rx", f.decoded.raw)
+                for f in frames_from_capture(pcapng)]
     assert logged == captured and len(logged) >= 4
     assert ("tx", bytes.fromhex("AA AA AA 06 03 00 01 02 03") + logged[-2][1][-2:]) in logged
     for path in (jsonl, pcapng):
