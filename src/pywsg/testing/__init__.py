@@ -17,6 +17,6 @@ writes), shipped with the package: ``wsg_sim.assert_replays(SAMPLE_SESSION)`` wo
 The same file as the repository's docs/examples/wsg-session.pcapng."""
 
 __all__ = [
-    "ACTIONS", "FAULT_KINDS", "SAMPLE_SESSION", "LoopThread", "Scenario", "ScenarioError", "ScenarioRunner", "SimThread", "World",
-    "WorldError", "apply", "world_state",
+    "ACTIONS", "FAULT_KINDS", "SAMPLE_SESSION", "LoopThread", "Scenario", "ScenarioError", "ScenarioRunner",
+    "SimThread", "World", "WorldError", "apply", "world_state",
 ]
