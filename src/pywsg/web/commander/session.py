@@ -129,6 +129,10 @@ class CommanderSession:
         self.result_seq += 1
         r = {"seq": self.result_seq, "time": time.time(), "command": command, "status": status, "final": final,
              "message": message}
+        if isinstance(values, SystemFlag):
+            values = _flag_names(int(values))
+        elif isinstance(values, bytes):
+            values = values.hex(" ").upper()
         if values is not None:
             r["values"] = jsonable(values)
         self.results.append(r)
