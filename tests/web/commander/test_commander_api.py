@@ -10,6 +10,7 @@ at once; the web interface's protections (CSRF, Host check, login off loopback) 
 from __future__ import annotations
 
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,7 +28,8 @@ from .harness import Cmdr, WireTap
 
 @pytest.fixture(scope="module")
 def sim() -> Iterator[SimThread]:
-    with SimThread(model="wsg50", tcp_port=0, udp_port=0) as s:
+    channel = f"cmdr-{uuid.uuid4().hex[:8]}"  # python-can's virtual channels are process-global
+    with SimThread(model="wsg50", tcp_port=0, udp_port=0, can_channel=channel) as s:
         yield s
 
 
@@ -59,10 +61,10 @@ def _last_seq(cmdr: Cmdr) -> int:
     return int(results[-1]["seq"]) if results else 0
 
 
-@pytest.mark.parametrize("link", ["tcp", "udp", "serial"])
+@pytest.mark.parametrize("link", ["tcp", "udp", "serial", "can"])
 def test_editor_packet_reaches_the_sim_byte_equal(sim: SimThread, tap: WireTap, cmdr: Cmdr, link: str) -> None:
     """000 §2: the packet the editor shows (CRC added) is what the gripper receives, on every link."""
-    url = {"tcp": sim.url, "udp": sim.udp_url, "serial": sim.serial_url}[link]
+    url = {"tcp": sim.url, "udp": sim.udp_url, "serial": sim.serial_url, "can": sim.g.can.address}[link]
     assert cmdr.connect(url)["status"] == "connected"
     shown = cmdr.http.get("/api/editor", params={"id": "06h", "payload": '"ack" 0x20 -1 150.0f 1000u16'}).json()
     assert shown["ok"], shown

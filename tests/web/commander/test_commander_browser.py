@@ -1,4 +1,4 @@
-"""The Commander page (000 §2) in real headless Chromium against ``wsg sim`` over TCP, UDP and a serial pty.
+"""The Commander page (000 §2) in real headless Chromium against ``wsg sim`` over TCP, UDP, a serial pty and CAN.
 
 Connect through the dialog; the Custom Command Editor decodes as one types, marks a bad item at its
 place, and the packet it shows is byte-equal to what reaches the sim; the Communication Log streams
@@ -9,6 +9,7 @@ keyboard only at phone width; a lost connection shows at once; closing the page 
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Iterator
 from typing import Any
 
@@ -27,7 +28,8 @@ DESKTOP = {"width": 1400, "height": 950}
 
 @pytest.fixture(scope="module")
 def sim() -> Iterator[SimThread]:
-    with SimThread(model="wsg50", tcp_port=0, udp_port=0) as s:
+    channel = f"cmdr-{uuid.uuid4().hex[:8]}"  # python-can's virtual channels are process-global
+    with SimThread(model="wsg50", tcp_port=0, udp_port=0, can_channel=channel) as s:
         yield s
 
 
@@ -59,10 +61,12 @@ def links(sim: SimThread) -> dict[str, tuple[str, dict[str, str]]]:
         "tcp": ("tcp", {"host": "127.0.0.1", "port": str(sim.g.tcp_port)}),
         "udp": ("udp", {"host": "127.0.0.1", "port": str(sim.g.udp_port), "reply": "0"}),
         "serial": ("serial", {"device": sim.serial_url.split("://", 1)[1].split("?")[0]}),
+        "can": ("can", {"channel": sim.g.can.address.split("://", 1)[1].split("?")[0], "interface": "virtual",
+                        "bitrate": "0"}),
     }
 
 
-@pytest.mark.parametrize("link", ["tcp", "udp", "serial"])
+@pytest.mark.parametrize("link", ["tcp", "udp", "serial", "can"])
 def test_editor_packet_shown_is_what_reaches_the_sim(sim: SimThread, tap: WireTap, cmdr: Cmdr, open_page: Any,
                                                      link: str) -> None:
     page = open_page(DESKTOP)
