@@ -29,10 +29,11 @@ def test_no_wait_over_tcp_is_refused_with_the_reason(sim: SimThread, args: list[
 
 def test_no_wait_over_udp_leaves_the_motion_running(sim: SimThread) -> None:
     assert run_wsg("home", url=sim.url).code == 0
-    r = run_wsg("move", "5", "--speed", "5", "--no-wait", url=sim.udp_url)
+    udp = sim.udp_url.split("?")[0] + "?reply_port=0"  # replies to our port: no shared fixed port 1501
+    r = run_wsg("move", "5", "--speed", "5", "--no-wait", url=udp)
     assert r.code == 0 and "pending True" in r.out, r
     assert sim.call(lambda: sim.gripper.snapshot().moving)  # no 07h over UDP: it goes on
-    assert run_wsg("stop", url=sim.udp_url).code == 0
+    assert run_wsg("stop", url=udp).code == 0
 
 
 @pytest.mark.parametrize("order", ["before", "after"])

@@ -29,8 +29,13 @@ from .harness import Cmdr, WireTap
 @pytest.fixture(scope="module")
 def sim() -> Iterator[SimThread]:
     channel = f"cmdr-{uuid.uuid4().hex[:8]}"  # python-can's virtual channels are process-global
-    with SimThread(model="wsg50", tcp_port=0, udp_port=0, can_channel=channel) as s:
+    with SimThread(model="wsg50", tcp_port=0, udp_port=0, udp_reply_port=None, can_channel=channel) as s:
         yield s
+
+
+def udp_url(sim: SimThread) -> str:
+    """The sim's UDP address, replies to our own port (no fixed local port 1501 that parallel tests share)."""
+    return sim.udp_url.split("?")[0] + "?reply_port=0"
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +69,7 @@ def _last_seq(cmdr: Cmdr) -> int:
 @pytest.mark.parametrize("link", ["tcp", "udp", "serial", "can"])
 def test_editor_packet_reaches_the_sim_byte_equal(sim: SimThread, tap: WireTap, cmdr: Cmdr, link: str) -> None:
     """000 §2: the packet the editor shows (CRC added) is what the gripper receives, on every link."""
-    url = {"tcp": sim.url, "udp": sim.udp_url, "serial": sim.serial_url, "can": sim.g.can.address}[link]
+    url = {"tcp": sim.url, "udp": udp_url(sim), "serial": sim.serial_url, "can": sim.g.can.address}[link]
     assert cmdr.connect(url)["status"] == "connected"
     shown = cmdr.http.get("/api/editor", params={"id": "06h", "payload": '"ack" 0x20 -1 150.0f 1000u16'}).json()
     assert shown["ok"], shown
@@ -178,6 +183,25 @@ def test_lost_connection_shows_at_once(sim: SimThread, cmdr: Cmdr) -> None:
         assert r.status_code == 409 and "not connected" in r.json()["detail"]
     finally:
         sim.call(sim.gripper.acknowledge_fast_stop)
+
+
+def test_a_silent_gripper_shows_over_udp_and_clears_when_it_answers(sim: SimThread, cmdr: Cmdr) -> None:
+    """UDP has no connection to lose: a command without a reply marks the gripper silent, a reply clears it."""
+    cmdr.connect(udp_url(sim))
+    sim.world.net("silent")
+    try:
+        r = cmdr.http.post("/api/command/width", json={})
+        assert r.json()["status"] == "E_TIMEOUT", r.text
+        conn = cmdr.state()["connection"]
+        assert conn["status"] == "silent" and "no answer" in conn["reason"], conn
+    finally:
+        sim.world.net("silent", False)
+    # the driver takes the first reply after a local timeout for the late answer to the request that
+    # timed out (it cannot tell), so the first command may time out too; its reply clears "silent"
+    cmdr.http.post("/api/command/width", json={})
+    wait_for(lambda: cmdr.state()["connection"]["status"] == "connected", 10)
+    r = cmdr.http.post("/api/command/width", json={})
+    assert r.json()["status"] == "E_SUCCESS", r.text
 
 
 def test_serial_port_picker_lists_pyserial_ports(cmdr: Cmdr, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -29,7 +29,7 @@ DESKTOP = {"width": 1400, "height": 950}
 @pytest.fixture(scope="module")
 def sim() -> Iterator[SimThread]:
     channel = f"cmdr-{uuid.uuid4().hex[:8]}"  # python-can's virtual channels are process-global
-    with SimThread(model="wsg50", tcp_port=0, udp_port=0, can_channel=channel) as s:
+    with SimThread(model="wsg50", tcp_port=0, udp_port=0, udp_reply_port=None, can_channel=channel) as s:
         yield s
 
 

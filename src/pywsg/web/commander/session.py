@@ -24,7 +24,7 @@ from typing import Any
 
 from ...capture.commlog import LogEntry, summary
 from ...client import AsyncGripper, AsyncStream, CommEntry, parse_url
-from ...errors import WsgError
+from ...errors import TimeoutError, WsgError
 from ...protocol import CATALOG, Frame, GripperState, Status, SystemFlag
 from ...protocol.editor import PayloadSyntaxError, build_packet
 from ..views import jsonable
@@ -76,7 +76,7 @@ class CommanderSession:
         self.grace = grace
         self.gripper: AsyncGripper | None = None
         self.url: str | None = None
-        self.status = "disconnected"  # connecting, connected, lost, disconnected
+        self.status = "disconnected"  # connecting, connected, silent (no answer in time), lost, disconnected
         self.reason = ""
         self.log: deque[tuple[int, LogEntry]] = deque(maxlen=keep)
         self.log_seq = 0
@@ -86,6 +86,7 @@ class CommanderSession:
         self.state_seq = 0
         self.conn_seq = 0
         self.pages = 0
+        self.last_rx = 0.0  # time.monotonic() of the last frame from the gripper
         self._streams: list[AsyncStream] = []
         self._tasks: set[asyncio.Task[Any]] = set()
         self._leave: asyncio.TimerHandle | None = None
@@ -116,6 +117,10 @@ class CommanderSession:
     def _on_frame(self, entry: CommEntry) -> None:
         if entry.frame is None:
             return  # a parse problem: the driver logs it; a checksum error fails the waiting call
+        if entry.direction == "rx":
+            self.last_rx = time.monotonic()
+            if self.status == "silent":
+                self._set_status("connected", "the gripper answers again")
         self.log_seq += 1
         self.log.append((self.log_seq, LogEntry.from_frame("tx" if entry.direction == "tx" else "rx",
                                                            entry.frame, entry.time)))
@@ -138,6 +143,23 @@ class CommanderSession:
         self.results.append(r)
         return r
 
+    def _failed(self, name: str, exc: WsgError, sent: float) -> dict[str, Any]:
+        """A command's error as its result; a local timeout also marks the gripper as silent."""
+        self._silent(exc, sent)
+        status = exc.status.name if isinstance(exc.status, Status) else f"status {int(exc.status)}"
+        return self._record(name, status, True, str(exc))
+
+    def _silent(self, exc: WsgError, sent: float) -> bool:
+        """No reply in time (not the gripper's E_TIMEOUT) and no frame at all since the request went out
+        at ``sent`` (``time.monotonic()``): over UDP, serial and CAN there is no connection to lose, so
+        this is how a gripper gone away shows; the next frame from it clears it."""
+        if not isinstance(exc, TimeoutError) or exc.from_device or self.gripper is None:
+            return False
+        if self.last_rx >= sent:
+            return False  # it did answer meanwhile (the driver took that for the late reply to an older request)
+        self._set_status("silent", f"no answer from {self.url}: {exc}")
+        return True
+
     # -- connecting ------------------------------------------------------------------------------
     async def connect(self, url: str) -> dict[str, Any]:
         """Connect to ``url`` (any form :func:`pywsg.client.parse_url` reads), replacing a connection."""
@@ -159,11 +181,13 @@ class CommanderSession:
                 raise CommandError(409, self.reason) from None
             self.gripper = g
             self._set_status("connected")
+            started = time.monotonic()
             try:
                 await self._start_live(g)
             except WsgError as exc:
-                # the gripper answers but refuses auto updates (or not at all): commands still work
-                self._set_status("connected", f"no live state: {exc}")
+                # the gripper refuses auto updates (commands still work), or does not answer at all
+                if not self._silent(exc, started):
+                    self._set_status("connected", f"no live state: {exc}")
         return self.connection()
 
     async def _start_live(self, g: AsyncGripper) -> None:
@@ -255,11 +279,11 @@ class CommanderSession:
             raise CommandError(422, "invalid input: " + "; ".join(f"{k}: {v}" for k, v in errors.items()), errors)
         g = self._driver_or_fail()
         name = CATALOG[p.command].name
+        sent = time.monotonic()
         try:
             got = await p.call(g, values)
         except WsgError as exc:
-            status = exc.status.name if isinstance(exc.status, Status) else f"status {int(exc.status)}"
-            return self._record(name, status, True, str(exc))
+            return self._failed(name, exc, sent)
         except ValueError as exc:  # the driver refused a value before sending
             raise CommandError(422, str(exc), {"_": str(exc)}) from None
         if p.motion:
@@ -268,11 +292,11 @@ class CommanderSession:
         return self._record(name, "E_SUCCESS", True, values=got)
 
     async def _settle(self, name: str, motion: Any) -> None:
+        sent = time.monotonic()
         try:
             await motion.wait()
         except WsgError as exc:
-            status = exc.status.name if isinstance(exc.status, Status) else f"status {int(exc.status)}"
-            self._record(name, status, True, str(exc))
+            self._failed(name, exc, sent)
         else:
             self._record(name, "E_SUCCESS", True, "done")
 
@@ -286,11 +310,11 @@ class CommanderSession:
 
     async def _custom(self, g: AsyncGripper, name: str, cid: int, payload: bytes) -> None:
         self._record(name, "sent", False, "sent from the Custom Command Editor")
+        sent = time.monotonic()
         try:
             reply = await g.request(cid, payload, check=False)
         except WsgError as exc:
-            status = exc.status.name if isinstance(exc.status, Status) else f"status {int(exc.status)}"
-            self._record(name, status, True, str(exc))
+            self._failed(name, exc, sent)
             return
         status = reply.status.name if isinstance(reply.status, Status) else f"status {int(reply.status)}"
         self._record(name, status, True, Status.describe(int(reply.status)) if reply.status != Status.E_SUCCESS

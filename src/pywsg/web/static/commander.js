@@ -67,12 +67,13 @@
     connected = c.status === "connected";
     $("c-dot").className = "dot " + (connected ? "on" : "off");
     const text = { connected: "connected to ", connecting: "connecting to ", lost: "CONNECTION LOST: ",
-      disconnected: "not connected" }[c.status] || c.status;
+      silent: "NO ANSWER from ", disconnected: "not connected" }[c.status] || c.status;
     $("c-conn").textContent = c.status === "disconnected" ? text : text + (c.url || "");
     $("c-url").textContent = c.url ? c.url : "no gripper";
-    $("btn-disconnect").disabled = !(connected || c.status === "lost");
+    $("btn-disconnect").disabled = !(connected || c.status === "lost" || c.status === "silent");
     document.body.classList.toggle("offline", !connected);
     if (c.status === "lost") { banner(c.reason || "connection lost", "bad"); announce("Connection lost"); }
+    else if (c.status === "silent") { banner(c.reason || "the gripper does not answer", "bad"); announce("No answer from the gripper"); }
     else if (c.status === "disconnected" && c.reason) banner(c.reason, "info");
     else if (c.status === "connected" && c.reason) banner(c.reason, "info");
     else banner("");
