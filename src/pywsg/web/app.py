@@ -129,8 +129,8 @@ class _Server(uvicorn.Server):
 
 
 @dataclasses.dataclass
-class WebHandle:
-    """A running web interface: ``url`` to open, ``close()`` to stop it."""
+class ServedApp:
+    """An app served by :func:`serve_app`: ``url`` to open it, ``stop_serving()`` to end the server."""
 
     host: str
     port: int
@@ -146,15 +146,23 @@ class WebHandle:
             host = "127.0.0.1"
         return f"http://{host}:{self.port}/"
 
-    async def close(self) -> None:
-        ctx: WebContext = self.app.state.ctx
-        ctx.closing.set()
+    async def stop_serving(self) -> None:
         self._server.should_exit = True
         with contextlib.suppress(asyncio.CancelledError):
             try:
                 await asyncio.wait_for(asyncio.shield(self._task), timeout=5.0)
             except TimeoutError:
                 self._task.cancel()
+
+
+@dataclasses.dataclass
+class WebHandle(ServedApp):
+    """A running web interface: ``url`` to open, ``close()`` to stop it."""
+
+    async def close(self) -> None:
+        ctx: WebContext = self.app.state.ctx
+        ctx.closing.set()
+        await self.stop_serving()
         ctx.bridge.close()
 
 
@@ -243,4 +251,4 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     return WebHandle(host=host, port=real_port, password=password, app=app, _server=server, _task=task)
 
 
-__all__ = ["WebHandle", "create_app", "serve_app", "serve_web"]
+__all__ = ["ServedApp", "WebHandle", "create_app", "serve_app", "serve_web"]

@@ -33,9 +33,10 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ... import __version__
 from .. import auth
-from ..app import STATIC, serve_app
+from ..app import STATIC, ServedApp, serve_app
 from ..auth import same_origin
 from ..context import error
+from ..live import _int, _wait_closed  # the web interface's WebSocket helpers
 from ..pages import template
 from ..security import COOKIE_NAME, Auth, WebSession, is_loopback_host
 from .commands import catalog_json
@@ -231,48 +232,16 @@ def router(ctx: CommanderContext) -> APIRouter:
     return r
 
 
-async def _wait_closed(websocket: WebSocket) -> None:
-    with contextlib.suppress(Exception):
-        while True:
-            message = await websocket.receive()
-            if message.get("type") == "websocket.disconnect":
-                return
-
-
-def _int(text: str | None, default: int) -> int:
-    try:
-        return int(text) if text is not None else default
-    except ValueError:
-        return default
-
-
 @dataclasses.dataclass
-class CommanderHandle:
+class CommanderHandle(ServedApp):
     """A running Commander: ``url`` to open, ``close()`` to stop it (disconnecting the gripper first)."""
 
-    host: str
-    port: int
-    password: str | None
-    app: FastAPI
-    session: CommanderSession
-    _server: Any
-    _task: asyncio.Task[None]
-
-    @property
-    def url(self) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
-        if host in ("0.0.0.0", "[::]"):
-            host = "127.0.0.1"
-        return f"http://{host}:{self.port}/"
+    session: CommanderSession | None = None
 
     async def close(self) -> None:
-        await self.session.close()
-        self._server.should_exit = True
-        with contextlib.suppress(asyncio.CancelledError):
-            try:
-                await asyncio.wait_for(asyncio.shield(self._task), timeout=5.0)
-            except TimeoutError:
-                self._task.cancel()
+        if self.session is not None:
+            await self.session.close()
+        await self.stop_serving()
 
 
 async def serve_commander(host: str = "127.0.0.1", port: int = 0, *, url: str = "", connect: bool = False,
@@ -292,7 +261,7 @@ async def serve_commander(host: str = "127.0.0.1", port: int = 0, *, url: str = 
     session = session or CommanderSession(grace=grace, timeout=timeout)
     app = create_commander_app(session, loopback=loopback, password=password, host=host, url=url)
     server, task, real_port = await serve_app(app, host, port)
-    handle = CommanderHandle(host, real_port, password, app, session, server, task)
+    handle = CommanderHandle(host, real_port, password, app, server, task, session)
     if connect and url:
         try:
             await session.connect(url)
