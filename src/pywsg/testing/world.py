@@ -16,7 +16,7 @@ from typing import Any
 
 from . import world_faults
 
-__all__ = ["ACTIONS", "FAULT_KINDS", "WorldError", "apply", "world_state"]
+__all__ = ["ACTIONS", "FAULT_KINDS", "PARAMETERS", "WorldError", "apply", "check_parameters", "world_state"]
 
 FAULT_KINDS = ("power", "current", "finger", "ack", "watchdog", "unplugged")
 """Faults that can be switched on and off (command manual 000 Appendix B flags SF_POWER_FAULT,
@@ -25,6 +25,31 @@ finger: :mod:`pywsg.testing.world_faults`)."""
 
 ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat", "slip", "disconnect", "net")
 """Names of the world actions (also the ``do`` key of a scenario event)."""
+
+PARAMETERS: dict[str, frozenset[str]] = {
+    "part": frozenset({"width", "stiffness", "inside"}),
+    "remove_part": frozenset(),
+    "block": frozenset({"width"}),
+    "unblock": frozenset(),
+    "fault": frozenset({"kind", "on", "finger", "timeout"}),
+    "heat": frozenset({"delta_c"}),
+    "slip": frozenset({"duration"}),
+    "disconnect": frozenset(),
+    "net": frozenset(),  # its kind's own parameters: pywsg.server.netfault checks those
+}
+"""The parameters each world action takes: any other key is refused (a typo such as ``widht`` would
+otherwise be ignored, and the part placed with no width or the default one)."""
+
+
+def check_parameters(action: str, params: Mapping[str, Any]) -> None:
+    """Raise :class:`WorldError` naming the first parameter ``action`` does not take."""
+    allowed = PARAMETERS.get(action)
+    if allowed is None or action == "net":
+        return
+    unknown = sorted(set(params) - allowed)
+    if unknown:
+        takes = ", ".join(sorted(allowed)) or "no parameters"
+        raise WorldError(unknown[0], f"not a parameter of {action} (it takes {takes})")
 
 
 class WorldError(ValueError):
@@ -91,6 +116,7 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     faults = getattr(gripper, "faults", None)
     if faults is None:
         raise WorldError("_", "this gripper has no world to change (not a virtual gripper)")
+    check_parameters(action, p)
     try:
         if action == "part":
             width = _width(gripper, p)

@@ -195,7 +195,7 @@ async def serve_app(app: Any, host: str, port: int, *, ssl_certfile: str | None 
     config = uvicorn.Config(
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, server_header=False, http=capped_http_protocol(
+        ws_ping_interval=None, ws_max_size=live.WS_MAX_MESSAGE, server_header=False, http=capped_http_protocol(
             max_connections, idle_timeout, requests_per_connection,
             RequestRate(request_rate, request_burst) if request_rate else None),
     )

@@ -28,13 +28,15 @@ from typing import Any
 
 from ..controller import FieldbusController
 from ..image import OutputImage
+from . import lldp
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
-from .ar import AR, ARState, ConnectionManager, Identity, Listener
+from .ar import AR, ARState, ConnectionManager, Listener
 from .dcp import OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
+from .im import Identity, IMData
 from .rpc import RPC_PORT
 from .rt import CyclicCodec
-from .station import NO_IP, IpSuite, PermanentStore, Station
+from .station import NO_IP, ORDER_ID, IpSuite, PermanentStore, Station
 
 log = logging.getLogger(__name__)
 
@@ -93,7 +95,7 @@ def interface_ipv4(iface: str) -> str | None:
 
 def _identity(gripper: Any) -> Identity:
     profile = getattr(gripper, "profile", None)
-    name = str(getattr(profile, "name", "WSG 50"))
+    name = str(getattr(profile, "name", ORDER_ID))
     serial = str(getattr(gripper, "serial_number", "") or "")
     fw = int(getattr(profile, "fw_version", 0x4000) or 0x4000)
     return Identity(order_id=name, serial_number=serial,
@@ -119,6 +121,10 @@ class ProfinetDevice:
         self.dcp = DcpResponder(self.station, DcpHandlers(self._set_name, self._set_ip, self._signal, self._reset))
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
+        # I&M1-4 as the settings file keeps them; a write stores them there again
+        self.cm.im.data = IMData.load(self.store.data, save=lambda changed: self.store.save(**changed))
+        self.port = self.cm.pdev.port
+        self._lldp: asyncio.TimerHandle | None = None
         self.codec: CyclicCodec | None = None
         self.alarms: AlarmChannel | None = None
         self.sock: socket.socket | None = None
@@ -146,6 +152,7 @@ class ProfinetDevice:
         self.sock = open_raw_socket(self.iface)
         self._loop.add_reader(self.sock.fileno(), self._readable)
         self._house = self._loop.call_later(1.0, self._housekeeping)
+        self._send_lldp()
         attach = getattr(self.controller, "attach_bus", None)
         if attach is not None:
             attach(self)
@@ -172,6 +179,10 @@ class ProfinetDevice:
             self._app_ready_timer.cancel()
         if self._house is not None:
             self._house.cancel()
+        if self._lldp is not None:
+            self._lldp.cancel()
+            if self.port.lldp_send:   # TTL 0: the neighbour forgets us at once (IEEE 802.1AB shutdown)
+                self._send(self._lldp_frame(ttl=0))
         if self.sock is not None:
             if self._loop is not None:
                 self._loop.remove_reader(self.sock.fileno())
@@ -204,6 +215,11 @@ class ProfinetDevice:
             rows["Last AR end"] = self.last_abort
         if time.monotonic() < self._signal_until:
             rows["Signal"] = "flashing (DCP Signal)"
+        n = self.port.current(time.monotonic())
+        rows["LLDP neighbour"] = f"{n.peer_station_name} {n.peer_port_name} ({mac_text(n.mac)})" if n else "(none)"
+        mismatch = self.port.mismatch(time.monotonic())
+        if mismatch:
+            rows["Port check"] = f"mismatch: {mismatch}"
         return rows
 
     # --- receive --------------------------------------------------------------------------------
@@ -249,6 +265,17 @@ class ProfinetDevice:
                             self._send(reply)
                 else:
                     self._output_frame(frame.payload)
+            return
+        if frame.ethertype == lldp.ETH_P_LLDP:
+            if frame.dst != lldp.LLDP_MULTICAST:
+                return   # LLDP goes to the nearest-bridge address only
+            neighbour = lldp.parse(frame, time.monotonic())
+            if neighbour is not None and neighbour != self.port.neighbour:
+                if self.port.neighbour is None or (neighbour.chassis_id, neighbour.port_id) != (
+                        self.port.neighbour.chassis_id, self.port.neighbour.port_id):
+                    log.info("PROFINET: LLDP neighbour %s port %s (%s)", neighbour.chassis_id, neighbour.port_id,
+                             mac_text(neighbour.mac))
+                self.port.neighbour = neighbour
             return
         if frame.ethertype in (ETH_P_IP, 0x0806):
             replies, udp = self.ipstack.handle(frame)
@@ -298,6 +325,23 @@ class ProfinetDevice:
         except OSError as exc:
             log.warning("PROFINET: send on %s: %s", self.iface, exc.strerror or exc)
 
+    # --- LLDP ------------------------------------------------------------------------------------------
+    def _lldp_frame(self, ttl: int = lldp.TTL_S) -> bytes:
+        return lldp.build(self.station.mac, self.station.name, self.ipstack.ip if self.ipstack.has_ip else NO_IP,
+                          name_of_device=self.port.name_of_device, ttl=ttl)
+
+    def _announce(self) -> None:
+        """A new name or IP: the neighbour learns it now, not at the next interval."""
+        if self.port.lldp_send:
+            self._send(self._lldp_frame())
+
+    def _send_lldp(self) -> None:
+        """Our LLDP frame now and every TX_INTERVAL_S (not while a PeerToPeerBoundary forbids it)."""
+        if self.port.lldp_send:
+            self._send(self._lldp_frame())
+        if self._loop is not None and self.sock is not None:
+            self._lldp = self._loop.call_later(lldp.TX_INTERVAL_S, self._send_lldp)
+
     # --- web interface (Settings → Command Interface, 003 §3.2) ------------------------------------------
     def apply_settings(self, name: str | None = None, ip: IpSuite | None = None) -> None:
         """New NameOfStation and/or IP suite from the web interface (already stored by it). An AR in
@@ -312,6 +356,7 @@ class ProfinetDevice:
         if ip is not None:
             self.station.ip = ip
             self.ipstack.ip = ip.ip
+        self._announce()
         self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
 
     # --- DCP Set ----------------------------------------------------------------------------------
@@ -328,6 +373,7 @@ class ProfinetDevice:
         self.station.name = name
         if permanent:
             self.store.save(profinet_name=name)
+        self._announce()
         self._syslog(f"PROFINET: NameOfStation set to '{name}' ({'permanent' if permanent else 'temporary'})")
         return OK
 
@@ -338,6 +384,7 @@ class ProfinetDevice:
         self.station.ip = suite
         self.ipstack.ip = suite.ip
         self._check_conflict()
+        self._announce()
         if permanent:
             self.store.save(ip_address=suite.ip, netmask=suite.mask,
                             gateway="" if suite.gateway == NO_IP else suite.gateway)
@@ -356,6 +403,7 @@ class ProfinetDevice:
         self.station.ip = IpSuite()
         self.ipstack.ip = NO_IP
         self.store.save(profinet_name="")
+        self._announce()
         self._syslog(f"PROFINET: reset to factory settings (mode {mode}): station name and IP cleared")
         return OK
 
@@ -380,6 +428,7 @@ class ProfinetDevice:
         self._ar_start = time.monotonic()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
+        self.cm.pdev.logbook.add(ar.uuid.bytes)
         if self._loop is not None:
             if self._tick is not None:
                 self._tick.cancel()
@@ -423,6 +472,8 @@ class ProfinetDevice:
                 self._tick = None
         self.last_abort = why
         if ar.is_io:
+            # LogBook: a release is no error; any other end is an abort (PNIOStatus CF 81 FD 00: "AR aborted")
+            self.cm.pdev.logbook.add(ar.uuid.bytes, 0 if why == "released by the controller" else 0xCF81FD00)
             self._syslog(f"PROFINET: AR of {ar.controller_ip} ended: {why}")
             if why != "released by the controller":
                 self._fail_safe(why)
