@@ -153,9 +153,10 @@ def test_saved_log_reads_back_as_jsonl_and_pcapng(sim: SimThread, cmdr: Cmdr, tm
     cmdr.http.post("/api/disconnect")  # one TCP client at a time: the replay's turn
     report = sim.replay(pcapng)
     assert report.matched and report.steps == 2, [d.line() for d in report.differences]
-    # the recording ends without 07h, so the replay's TCP close FAST STOPs the sim (000 §1.4.2): clear it
-    if sim.call(lambda: sim.gripper.snapshot().fast_stop):
-        sim.call(sim.gripper.acknowledge_fast_stop)
+    # the recording ends without 07h, so the replay's TCP close FAST STOPs the sim (000 §1.4.2), once the
+    # sim has seen the close: wait for it, then clear it for the next test
+    wait_for(lambda: sim.call(lambda: sim.gripper.snapshot().fast_stop), 10)
+    sim.call(sim.gripper.acknowledge_fast_stop)
 
 
 def test_closing_the_page_announces_the_disconnect(sim: SimThread, tap: WireTap, cmdr: Cmdr) -> None:
