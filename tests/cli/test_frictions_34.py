@@ -54,9 +54,11 @@ def test_global_options_work_on_either_side_of_the_command(order: str) -> None:
     assert r.json()["ok"] is False, r                  # --json reached the command
 
 
-def test_global_option_after_a_command_that_has_its_own_keeps_the_commands() -> None:
-    """`wsg decode --json` is decode's own --json (a JSON list), not moved in front: the command's option wins."""
-    r = run_wsg("decode", "AA AA AA 06 00 00 97 26", "--json")
+@pytest.mark.parametrize("order", ["before", "after"])
+def test_json_means_the_commands_own_json_on_either_side(order: str) -> None:
+    """`wsg --json decode X` and `wsg decode X --json`: decode's own --json (a JSON list) both times."""
+    frame = "AA AA AA 06 00 00 97 26"
+    r = run_wsg("--json", "decode", frame) if order == "before" else run_wsg("decode", frame, "--json")
     assert r.code == 0 and r.json()[0]["command"] == "LOOP", r
 
 

@@ -95,8 +95,9 @@ class EitherSideGroup(SuggestingGroup):
 
     ``wsg --timeout 2 state`` and ``wsg state -v`` mean ``wsg state --timeout 2`` and ``wsg -v state``:
     before click parses, an option ``wsg`` does not know that stands before the command name moves
-    behind it, and an option of ``wsg`` the command does not have itself (``-v``, ``--log``,
-    ``--json``, ...) moves in front of it. The command's own option wins where both have one.
+    behind it, an option of ``wsg`` the command does not have itself (``-v``, ``--log``, ``--json``,
+    ...) moves in front of it, and ``--json``/``--log``/``--log-file`` before the name go to a command
+    that has its own (``wsg --json decode X``). The command's own option wins where both have one.
     """
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
@@ -132,6 +133,17 @@ class EitherSideGroup(SuggestingGroup):
         if cmd is None:
             return args
         theirs, theirs_valued = _option_names(cmd.get_params(ctx))
+        # ``wsg --json decode X`` is ``wsg decode --json X``: an option of the same meaning on both
+        # sides goes to a command that has it (a command that has none reads wsg's, see runner.options)
+        kept: list[str] = []
+        k = 0
+        while k < len(front):
+            word = front[k]
+            name = word.split("=", 1)[0]
+            n = 2 if name in mine_valued and "=" not in word and k + 1 < len(front) else 1
+            (behind if name in SAME_MEANING and name in theirs else kept).extend(front[k:k + n])
+            k += n
+        front = kept
         rest: list[str] = []
         j = i + 1
         while j < len(args):
@@ -154,6 +166,10 @@ class EitherSideGroup(SuggestingGroup):
                 rest.append(word)
             j += 1
         return [*front, args[i], *behind, *rest]
+
+
+SAME_MEANING = frozenset({"--json", "--log", "--log-file"})
+"""Options of ``wsg`` that mean the same as a command's own option of that name."""
 
 
 def _is_verbose(word: str) -> bool:
