@@ -28,6 +28,7 @@ _SUBCOMMANDS: dict[str, str] = {
     "replay": "pywsg.cli.replay:replay",
     "gsd": "pywsg.cli.gsd:gsd",
     "commander": "pywsg.cli.commander:commander",
+    "ros": "pywsg.cli.ros:ros",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"
@@ -41,7 +42,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
               "monitor"),
     "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
     "Tools": ("commander", "send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy",
-              "replay"),
+              "replay", "ros"),
 }
 
 

@@ -112,8 +112,9 @@ def _json_line(line: str) -> str:
               "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
 @click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
               help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
-@click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
-              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450); nominal on a pty.")
+@click.option("--profibus-baudrate", default="19200", show_default=True, metavar="BIT/S|auto",
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600 ... 1500000); nominal on a pty. "
+              "auto: detect the master's rate (a serial device only).")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
@@ -175,7 +176,7 @@ def sim(
     profinet_ip: str | None,
     profibus_line: str,
     profibus_address: int | None,
-    profibus_baudrate: int,
+    profibus_baudrate: str,
     web_port: int | None,
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
@@ -216,9 +217,16 @@ def sim(
         from ..fieldbus.profibus.line import check_baudrate
 
         try:
-            check_baudrate(profibus_baudrate)
+            if profibus_baudrate != "auto" and not profibus_baudrate.isdigit():
+                raise ValueError(f"{profibus_baudrate!r} is neither a rate in bit/s nor auto")
+            rate = None if profibus_baudrate == "auto" else int(profibus_baudrate)
+            check_baudrate(rate)
+            if rate is None and profibus == "pty":
+                raise ValueError("auto needs a serial device: a pty has no bit timing")
         except ValueError as exc:
             raise click.BadParameter(str(exc), param_hint="--profibus-baudrate") from None
+    else:
+        rate = 19200
 
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
@@ -258,7 +266,7 @@ def sim(
         profinet_ip=profinet_ip,
         profibus=profibus,
         profibus_address=profibus_address,
-        profibus_baudrate=profibus_baudrate,
+        profibus_baudrate=rate,
         web_port=web,
         settings=settings_file,
         count=count,
