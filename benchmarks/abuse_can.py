@@ -64,7 +64,7 @@ def _flood(st: SimThread, channel: str, units: list[bytes]) -> tuple[float, floa
     msgs = [can.Message(arbitration_id=0x01, data=u, is_extended_id=False) for u in units]
     msgs += [can.Message(arbitration_id=0x01, data=marker[i : i + 8], is_extended_id=False)
              for i in range(0, len(marker), 8)]
-    notifier = next(t for t in threading.enumerate() if t.name.startswith("Notifier"))
+    notifier = next(t for t in threading.enumerate() if t.name.startswith(("Notifier", "can-reader")))
     bus = can.Bus(interface="virtual", channel=channel)
     got = bytearray()
     frames = 0
