@@ -40,9 +40,12 @@ def batchable(bus: Any) -> bool:
 def send_many(bus: Any, can_id: int, chunks: Iterable[bytes]) -> bool:
     """Send ``chunks`` (≤ 8 bytes each) as standard-identifier data frames on ``can_id``, in order, to
     every other bus on ``bus``'s channel, as ``bus.send`` would one by one. False (nothing sent) when a
-    receiver's queue is bounded: the caller then uses ``bus.send``."""
+    receiver's queue is bounded, or ``bus.send`` was replaced on the instance (a wrapper injecting faults
+    or logging): the caller then uses ``bus.send``."""
     import can
 
+    if "send" in vars(bus):
+        return False
     receivers = [q for q in bus.channel if q is not bus.queue or bus.receive_own_messages]
     if any(q.maxsize > 0 for q in receivers):
         return False
@@ -78,7 +81,7 @@ def _maker(message: type) -> Callable[[float, int, Any, bool, bytes], Any]:
     new = object.__new__
 
     def fast(stamp: float, can_id: int, channel: Any, rx: bool, data: bytes) -> Any:
-        m = new(message)
+        m: Any = new(message)
         m.timestamp, m.arbitration_id, m.channel, m.is_rx = stamp, can_id, channel, rx
         m.is_extended_id = m.is_remote_frame = m.is_error_frame = m.is_fd = False
         m.bitrate_switch = m.error_state_indicator = False
