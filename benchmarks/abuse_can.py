@@ -9,7 +9,7 @@ two other threads (one sends, one reads the answers). Printed per attack:
   item 13 the sim's own batch reader), and the sim's total (loop + reader),
 - the baseline: the CPU python-can takes to send the flood (the client's ``bus.send`` of the same CAN
   frames, in the sending thread of the same run),
-- the sim's CPU (loop + Notifier) per second of a saturated classic CAN bus at 1 Mbit/s
+- the sim's CPU (loop + reader) per second of a saturated classic CAN bus at 1 Mbit/s
   (~8,000 8-byte frames a second, so 1 MiB is ~16 s of bus time),
 - the waits of a well-behaved UDP client of the same sim, in a process of its own, sending Loop
   requests back to back during a second run (the client's threads share the sim's GIL: an in-process
