@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from .runner import PORT
+from .runner import PORT, FloatRange
 
 
 class _CanId(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
@@ -123,19 +123,19 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
-@click.option("--web-request-rate", type=click.FloatRange(0, 100000), default=20.0, show_default=True,
+@click.option("--web-request-rate", type=FloatRange(0, 100000), default=20.0, show_default=True,
               metavar="PER_S", help="Web requests per second per client address on average (0: no limit); "
               "over it a request is answered 429 Too Many Requests.")
 @click.option("--web-request-burst", type=click.IntRange(1, 1000000), default=200, show_default=True,
               help="Web requests a client address may make at once before --web-request-rate applies.")
-@click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
+@click.option("--idle-timeout", type=FloatRange(0, 86400), default=60.0, show_default=True,
               help="Close a Modbus/TCP or web connection after this many seconds without data either way "
                    "(0: never). A polling master is never idle.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Settings file (JSON): loaded at start if it exists, saved on exit.")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
-@click.option("--time-scale", "time_scale", type=click.FloatRange(min=0, min_open=True, max=1e6), default=1.0,
+@click.option("--time-scale", "time_scale", type=FloatRange(min=0, min_open=True, max=1e6), default=1.0,
               show_default=True, metavar="K",
               help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
               "periods and scenarios (the network and clients' timeouts are not scaled).")

@@ -328,7 +328,8 @@ class SimThread:
         if self._loop_thread is None:
             self._loop_thread = LoopThread()
         try:
-            self.run(self._start())
+            # generous: the first start in a process imports the web stack (seconds on a loaded machine)
+            self.run(self._start(), timeout=60)
         except BaseException:
             if self._own_loop:
                 self._loop_thread.close()
