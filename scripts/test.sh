@@ -15,6 +15,14 @@ if [ ! -x .venv/bin/python ]; then
 fi
 echo "== installing pywsg[test] into .venv (first run: a minute or so)"
 .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[test]"
+# The virtual gripper's container image for the tests marked `container` (tests/container), built beside lint
+# and the other tests; installs podman, runc and mmdebstrap when missing (docs/container.md, "The tests").
+echo "== the container image for the container tests (scripts/container-env.sh; log: .venv/container-env.log), in the background"
+bash scripts/container-env.sh start >.venv/container-env.log 2>&1 &
+container_pid=$!
+old_pid=""
+py_pids=()
+trap 'for p in "$old_pid" "$container_pid" "${py_pids[@]}"; do [ -n "$p" ] && kill "$p" 2>/dev/null; done' EXIT
 need=()
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
 command -v mbpoll >/dev/null 2>&1 || need+=(mbpoll)
@@ -32,6 +40,7 @@ if [ ${#need[@]} -gt 0 ]; then
 fi
 # axe-core (npm) checks the web pages for WCAG violations in the browser tests
 if [ ! -f .venv/axe/node_modules/axe-core/axe.min.js ]; then
+    echo "== installing axe-core 4 from npm into .venv/axe (the browser tests' accessibility check)"
     npm install --prefix .venv/axe --no-save --no-audit --no-fund --loglevel=error axe-core@4 >/dev/null
 fi
 # The ROS 2 test environment (.venv-ros: pinned ROS 2 wheels, two interface packages built with cmake) is built
@@ -56,8 +65,6 @@ export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
 # --dist loadfile: the tests of a module run on one worker, in order, sharing its module-scoped fixtures.
 WORKERS=${PYTEST_WORKERS:-$(( $(nproc) + 1 ))}
 XDIST=(-n "$WORKERS" --dist loadfile)
-old_pid=""
-py_pids=()
 py_vers=()
 if [ $# -eq 0 ]; then
     # The pymodbus pin's lower end (pyproject.toml) is supported too: the tests marked `pymodbus` run once more on
@@ -66,6 +73,7 @@ if [ $# -eq 0 ]; then
     oldest=$(sed -n 's/^ *"pymodbus>=\([0-9.]*\).*/\1/p' pyproject.toml | head -n 1)
     [ -n "$oldest" ] || { echo "no pymodbus>= pin found in pyproject.toml" >&2; exit 1; }
     target=.venv/pymodbus-$oldest
+    [ -d "$target/pymodbus" ] || echo "== installing pymodbus $oldest into $target (the oldest supported, for a second run)"
     [ -d "$target/pymodbus" ] || .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps --target "$target" "pymodbus==$oldest"
     PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --dist load -m pymodbus \
         >.venv/pytest-oldest-pymodbus.log 2>&1 &
@@ -76,11 +84,10 @@ if [ $# -eq 0 ]; then
     [ ${#pys[@]} -ge 2 ] || { echo "no Python version classifiers in pyproject.toml" >&2; exit 1; }
     for v in "${pys[0]}" "${pys[-1]}"; do
         [ "$v" = "$(.venv/bin/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')" ] && continue
-        bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser" >".venv/pytest-py$v.log" 2>&1 &
+        bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser and not container" >".venv/pytest-py$v.log" 2>&1 &
         py_pids+=("$!")
         py_vers+=("$v")
     done
-    trap 'for p in "$old_pid" "${py_pids[@]}"; do [ -n "$p" ] && kill "$p" 2>/dev/null; done' EXIT
 fi
 echo "== pytest ($WORKERS workers)"
 status=0
@@ -110,4 +117,7 @@ for i in "${!py_pids[@]}"; do
     [ "$py_status" -eq 0 ] || status=$py_status
 done
 py_pids=()
+wait "$container_pid" 2>/dev/null || true   # the container tests waited for it; a failed build failed them
+container_pid=""
+bash scripts/container-env.sh clean          # the test image goes; the Debian base pywsg-base:bookworm stays
 exit "$status"

@@ -81,8 +81,8 @@ class SimOptions:
     """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
     profibus_address: int | None = None
     """Station address 0..125; None: the stored one (Settings → Command Interface), else 7."""
-    profibus_baudrate: int = 19200
-    """Baud rate in bit/s (one the GSD declares; nominal on a pty)."""
+    profibus_baudrate: int | None = 19200
+    """Baud rate in bit/s (one the GSD declares; nominal on a pty); None: detected (a real port)."""
     web_port: int | None = None
     settings: Path | None = None
     """Settings file: loaded at start when it exists, saved at a clean stop."""
@@ -120,6 +120,9 @@ def bind_error(what: str, host: str, port: int, option: str, exc: OSError) -> Si
     if exc.errno == errno.EADDRINUSE:
         text += (f" (another program, perhaps another `wsg sim`, has port {port}): choose another with "
                  f"{option} PORT, or {option} 0 for any free port")
+    elif exc.errno == errno.EACCES and 0 < port < 1024:
+        text += (" (ports below 1024 need root or the sysctl net.ipv4.ip_unprivileged_port_start; in a "
+                 "container: --sysctl net.ipv4.ip_unprivileged_port_start=0, see docs/container.md)")
     return SimError(text)
 
 
@@ -455,16 +458,16 @@ class SimServer:
 
         opts = self.options
         store = AddressStore.beside(opts.settings)
-        address = opts.profibus_address
-        if address is None:
-            address = store.load() + i
+        stored = store.load() + i     # also reads the stored No_Add_Chg
+        address = stored if opts.profibus_address is None else opts.profibus_address
         line = opts.profibus or "pty"
         path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
         from ..fieldbus.profibus.line import ProfibusAdapter
 
         try:
             sg.profibus = await ProfibusAdapter(sg.fieldbus_controller(), path, address, opts.profibus_baudrate,
-                                                on_address_change=store.save if i == 0 else None).start()
+                                                on_address_change=store.save if i == 0 else None,
+                                                address_locked=store.locked and i == 0).start()
         except ValueError as exc:
             raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
         except OSError as exc:   # pyserial nests the OS error in its own message: name the cause once

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 from ..exchange import FieldbusConnectionError
 from .async_gripper import AsyncFieldbusGripper, FieldbusError
-from .cycle import STEP_TEXT, STW1_BOOLS, SYSSTATE_BOOLS, CycleConfig, GrippingCycle, SclBools, WsgReceive
+from .cycle import GSTATE_NAMES, STEP_TEXT, STW1_BOOLS, SYSSTATE_BOOLS, CycleConfig, GrippingCycle, SclBools, WsgReceive
 from .gripper import FieldbusGripper
 
 __all__ = [
+    "GSTATE_NAMES",
     "STEP_TEXT",
     "STW1_BOOLS",
     "SYSSTATE_BOOLS",

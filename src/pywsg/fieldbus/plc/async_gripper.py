@@ -100,6 +100,7 @@ class AsyncFieldbusGripper:
         await self.close()
 
     # --- one bus cycle -------------------------------------------------------------------------
+    # --- one bus cycle -------------------------------------------------------------------------
     async def read(self) -> InputImage:
         """Read the 12 input bytes."""
         try:
@@ -125,6 +126,7 @@ class AsyncFieldbusGripper:
         await self.write(self.outputs if image is None else image)
         return await self.read()
 
+    # --- commands ------------------------------------------------------------------------------
     # --- commands ------------------------------------------------------------------------------
     def _params(self, width: float | None, speed: float | None, force: float | None) -> OutputImage:
         out = self.outputs

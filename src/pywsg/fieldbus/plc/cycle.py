@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
-from ...protocol import Status
+from ...protocol import GState, Status
 from ..image import CmdFlag, InputImage, OutputImage
 
 
@@ -47,6 +47,7 @@ STEP_TEXT = {
     11: "cycle finished: wait for IDLE, restart at step 3",
 }
 
+# TYPE "WSG_RECEIVE" of the listing (002 Appendix D, lines 5..65): names exactly as declared.
 STW1_BOOLS = ("IDLE", "GRASPING", "NO_PART", "PART_LOST", "HOLDING", "RELEASING", "POSITIONING", "ERROR",
               "OF1", "OF2", "OF3", "OF4", "OF5", "OF6", "OF7", "OF8")
 
@@ -281,6 +282,10 @@ class GrippingCycle:
                 "on ERROR, and a FAST STOP sets IDLE (002 §4.6); --recover-fast-stop treats FAST STOP like ERROR")
 
 
+GSTATE_NAMES = {"GRASPING": GState.GRIPPING.name}
+"""The listing's Bool names (STW1) that differ from the gripper state's name."""
+
+
 def _status_name(code: int) -> str:
     try:
         return Status(code).name
@@ -289,6 +294,7 @@ def _status_name(code: int) -> str:
 
 
 def _gstate_name(stw1: SclBools) -> str:
-    """The gripper state named in STW1 (one-hot), as the listing spells it (GRASPING for GRIPPING)."""
-    states = [name for name in STW1_BOOLS[:8] if getattr(stw1, name)]
+    """The gripper state named in STW1 (one-hot) by its one name: the listing's Bool GRASPING is the
+    state GRIPPING (000 §3.4.2), which the step texts beside it name too."""
+    states = [GSTATE_NAMES.get(name, name) for name in STW1_BOOLS[:8] if getattr(stw1, name)]
     return states[0] if len(states) == 1 else f"GSTATE={'+'.join(states) or '0'}"
