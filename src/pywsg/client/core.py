@@ -8,6 +8,7 @@ from ..errors import BadChecksumReply, ConnectionLostError, ProtocolError, WsgEr
 from ..protocol import CATALOG, Command, Frame, Status, SystemFlag
 from ..protocol.parser import MaxPayload, whole_frame
 from .calls import AUTO_UPDATE_IDS, STREAM_NAMES, Call, decode_sample
+from .reconnect import ReconnectPolicy as ReconnectPolicy  # it lived here before 0.4
 from .types import Reply, Sample
 
 T = TypeVar("T")
