@@ -33,7 +33,7 @@ from .ar import AR, ARState, ConnectionManager, Identity, Listener
 from .dcp import OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
 from .rpc import RPC_PORT
-from .rt import CyclicCodec
+from .rt import SUBSTITUTE, CyclicCodec, OutputConsumer
 from .station import NO_IP, IpSuite, PermanentStore, Station
 
 log = logging.getLogger(__name__)
@@ -126,7 +126,7 @@ class ProfinetDevice:
         self._tick: asyncio.TimerHandle | None = None
         self._app_ready: tuple[uuid.UUID, int, AR] | None = None   # activity, tries, AR
         self._app_ready_timer: asyncio.TimerHandle | None = None
-        self._last_outputs: bytes | None = None
+        self.consumer = OutputConsumer()
         self._signal_until = 0.0
         # bus statistics (Fieldbus Monitor)
         self.frames_in = self.frames_out = self.missed = self.watchdog_expiries = 0
@@ -196,6 +196,8 @@ class ProfinetDevice:
             rows["Controller"] = f"{ar.request.station_name} {ar.controller_ip} ({mac_text(ar.controller_mac)})"
             rows["Cycle time"] = f"{ar.output_cr.cycle_s * 1000:g} ms"
         rows["Frames in / out"] = f"{self.frames_in} / {self.frames_out}"
+        if ar is not None and self.consumer.substituting:
+            rows["Outputs"] = f"substitute values (zero image): {self.consumer.substituting}"
         rows["Missed frames"] = str(self.missed)
         rows["Watchdog expiries"] = str(self.watchdog_expiries)
         if self.alarms is not None and self.alarms.sent:
@@ -284,9 +286,16 @@ class ProfinetDevice:
             if gap > step and step:
                 self.missed += gap // step - 1
         self._last_counter = out.cycle_counter
-        if out.outputs is not None and out.outputs != self._last_outputs:
-            self._last_outputs = out.outputs
-            self.controller.write_outputs(OutputImage.unpack(out.outputs))
+        was = self.consumer.substituting
+        image = self.consumer.take(out)
+        if self.consumer.substituting != was:
+            if self.consumer.substituting:
+                log.warning("PROFINET: the controller's outputs are not valid (%s): substitute values, a zero "
+                            "output image", self.consumer.substituting)
+            else:
+                log.info("PROFINET: the controller's outputs are valid again (RUN, IOPS GOOD)")
+        if image is not None:
+            self.controller.write_outputs(OutputImage.unpack(image))
 
     def _send(self, frame: bytes) -> None:
         if self.sock is None:
@@ -376,7 +385,7 @@ class ProfinetDevice:
         self._diag_ready = False
         self.ar_count += 1
         self._last_counter = None
-        self._last_outputs = None
+        self.consumer = OutputConsumer()
         self._ar_start = time.monotonic()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
@@ -426,6 +435,11 @@ class ProfinetDevice:
             self._syslog(f"PROFINET: AR of {ar.controller_ip} ended: {why}")
             if why != "released by the controller":
                 self._fail_safe(why)
+            elif self.consumer.applied not in (None, SUBSTITUTE):
+                # a Release is no lost master (no FAST STOP), but its outputs end with the AR: substitute
+                # values, as for ProviderState STOP (a JOG level must not outlive the AR)
+                self.controller.write_outputs(OutputImage.unpack(SUBSTITUTE))
+            self.consumer = OutputConsumer()
 
     def _abort(self, ar: AR, why: str) -> None:
         self.cm.drop(ar, why)
