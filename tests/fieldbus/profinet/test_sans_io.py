@@ -269,3 +269,35 @@ def test_ip_stack_answers_arp_only_for_its_address() -> None:
     other = arp[:-1] + b"\x15"
     f = parse_frame(other)
     assert f is not None and st.handle(f) == ([], None)
+
+
+def test_disappears_alarms_say_whether_other_faults_remain() -> None:
+    """IEC 61158-6-10: a fault that goes while others stay is a Diagnosis alarm with Specifier 3
+    ("disappears, other remain"); the last one to go is AlarmType 000Ch "Diagnosis disappears", Specifier 2
+    (002 §3.3's listed flags)."""
+    cm = ConnectionManager(_station(), Identity("WSG 50", "1"))
+    cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED)), "x", 1)
+    assert cm.io_ar is not None
+    ch = AlarmChannel(cm.io_ar, MAC, cm.alarm_ref)
+    SF = SystemFlag
+
+    def drained() -> list[tuple[int, int, int, bool]]:   # AlarmType, ChannelErrorType, Specifier, faults remain
+        out = []
+        while ch.queue:
+            pdu = ch.queue.popleft()
+            alarm_type, = struct.unpack_from("!H", pdu, 6)
+            spec, = struct.unpack_from("!H", pdu, 24)
+            _ch, props, error = struct.unpack_from("!HHH", pdu, 28)
+            out.append((alarm_type, error, props >> 11 & 3, bool(spec & 0x2000)))
+        return out
+
+    ch.flags(int(SF.SF_FAST_STOP | SF.SF_TEMP_FAULT))
+    assert drained() == [(1, 0x010C, 1, True), (1, 0x0005, 1, True)]
+    ch.flags(int(SF.SF_FAST_STOP))
+    assert drained() == [(1, 0x0005, 3, True)]
+    ch.flags(0)
+    assert drained() == [(0x000C, 0x010C, 2, False)]
+    ch.flags(int(SF.SF_CURR_FAULT | SF.SF_POWER_FAULT))
+    drained()
+    ch.flags(0)   # both go at once: the first "other remain", the last "disappears"
+    assert [(t, s) for t, _e, s, _r in drained()] == [(1, 3), (0x000C, 2)]

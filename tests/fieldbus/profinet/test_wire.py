@@ -88,8 +88,9 @@ def test_profinet_py_finds_reads_connects_and_runs_the_scl_cycle(wire: Wire, tmp
     # 002 §3.3's diagnosis on PROFINET: FAST STOP raised, then acknowledged -> appears / disappears
     diag = wire.controller("diag", STATION)
     assert diag["state"] == "running", diag
+    # the last fault going is a "Diagnosis disappears" alarm (AlarmType 000Ch, Specifier 2)
     assert diag["alarms"] == [{"type": 1, "slot": 1, "subslot": 1, "items": [[0x010C, 1]]},
-                              {"type": 1, "slot": 1, "subslot": 1, "items": [[0x010C, 2]]}], diag
+                              {"type": 0x0C, "slot": 1, "subslot": 1, "items": [[0x010C, 2]]}], diag
     cap.stop()
     err = sim.stop()
     assert "Traceback" not in err

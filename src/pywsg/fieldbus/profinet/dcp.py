@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .ether import ETH_P_PNIO, Frame, ether
+from .refusals import RefusalLog
 from .station import IpSuite, Station, ip_suite_error, name_error
 
 log = logging.getLogger(__name__)
@@ -78,6 +79,7 @@ class DcpResponder:
         self.station = station
         self.handlers = handlers
         self.requests = 0   # DCP requests answered (for the Fieldbus Monitor)
+        self.refusals = RefusalLog(log)
 
     def handle(self, frame: Frame) -> list[tuple[float, bytes]]:
         if frame.ethertype != ETH_P_PNIO or len(frame.payload) < 12:
@@ -190,7 +192,7 @@ class DcpResponder:
             except UnicodeDecodeError:
                 return SUBOPTION_NOT_SET
             if name_error(name) is not None:
-                log.warning("DCP Set NameOfStation %r refused: %s", name, name_error(name))
+                self.refusals.warn("DCP Set NameOfStation %r refused: %s", name, name_error(name))
                 return SUBOPTION_NOT_SET
             return self.handlers.set_name(name, permanent)
         if option == IP_PARAMETER:
@@ -199,7 +201,7 @@ class DcpResponder:
             suite = IpSuite.from_raw(data)
             problem = ip_suite_error(suite.ip, suite.mask, suite.gateway)
             if problem is not None:
-                log.warning("DCP Set IP refused: %s", problem)
+                self.refusals.warn("DCP Set IP refused: %s", problem)
                 return SUBOPTION_NOT_SET
             return self.handlers.set_ip(suite, permanent)
         if option == CTRL_SIGNAL:

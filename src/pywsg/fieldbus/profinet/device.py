@@ -119,6 +119,7 @@ class ProfinetDevice:
         self.dcp = DcpResponder(self.station, DcpHandlers(self._set_name, self._set_ip, self._signal, self._reset))
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
+        self.cm.sysstate = lambda: int.from_bytes(self.controller.input_bytes()[2:6], "little")
         self.codec: CyclicCodec | None = None
         self.alarms: AlarmChannel | None = None
         self.sock: socket.socket | None = None
@@ -494,6 +495,8 @@ class ProfinetDevice:
         alarms = self.alarms
         assert alarms is not None
         sysstate = int.from_bytes(inputs[2:6], "little")
+        if self.codec is not None:   # the next input frame's StationProblemIndicator: a diagnosis is pending
+            self.codec.station_problem = bool(sysstate & DIAGNOSIS_FLAGS)
         if not self._diag_ready:
             if ar.state != ARState.DATA:
                 return

@@ -56,6 +56,7 @@ class CyclicCodec:
             length = exp.input_length if exp else 0
             self._iops_offsets.append((o.offset + length, (o.slot, o.subslot) in ar.proper))
         self.provider_ok = False   # IOPS GOOD only once the application is ready
+        self.station_problem = False   # a diagnosis is pending: DataStatus.StationProblemIndicator 0
         self.header = ether(ar.controller_mac, mac, ETH_P_PNIO, b"", tag=True)[:18]
 
     def input_frame(self, inputs: bytes) -> bytes:
@@ -70,7 +71,8 @@ class CyclicCodec:
             c[self._wsg_in:self._wsg_in + INPUT_LENGTH] = inputs[:INPUT_LENGTH]
         self.cycle_counter = (self.cycle_counter + self.step) & 0xFFFF
         frame = (self.header + struct.pack("!H", self.ar.input_frame_id) + bytes(c)
-                 + struct.pack("!HBB", self.cycle_counter, DS_DEVICE, 0))
+                 + struct.pack("!HBB", self.cycle_counter,
+                               DS_DEVICE & ~DS_STATION_OK if self.station_problem else DS_DEVICE, 0))
         return frame + bytes(max(0, 64 - len(frame)))
 
     def output(self, payload: bytes) -> OutputData | None:
