@@ -112,10 +112,21 @@ def dcp_scenario(name: str, mac: str) -> None:
     res["get_name"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
     res["set_name"] = dcp.set_param(sock, src, mac, "name", "renamed-wsg", permanent=True)
     res["found_renamed"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.mac
-    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0")
+    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0", permanent=True)
     res["ip_after"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.ip
     res["signal"] = dcp.signal_device(sock, src, mac)
-    res["reset"] = dcp.reset_to_factory(sock, src, mac)
+    time.sleep(0.3)   # profinet-py takes a queued answer with a wrong XID for its own (Signal's): a fresh socket
+    sock.close()
+    sock = ethernet_socket(IFACE, 3)
+    try:   # profinet-py's default BlockQualifier 0002h is mode 1, "reset application data" (Wireshark agrees)
+        res["reset_mode1"] = dcp.reset_to_factory(sock, src, mac)
+    except dcp.DCPError as exc:
+        res["reset_mode1"] = str(exc)
+    res["name_after_mode1"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
+    time.sleep(0.3)
+    sock.close()
+    sock = ethernet_socket(IFACE, 3)
+    res["reset"] = dcp.reset_to_factory(sock, src, mac, mode=0x0004)   # mode 2: communication parameters
     res["name_after_reset"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
     out(**res)
 

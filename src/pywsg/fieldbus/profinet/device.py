@@ -30,7 +30,7 @@ from ..controller import FieldbusController
 from ..image import OutputImage
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
 from .ar import AR, ARState, ConnectionManager, Identity, Listener
-from .dcp import OK, DcpHandlers, DcpResponder
+from .dcp import IN_OPERATION, OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
 from .rpc import RPC_PORT
 from .rt import SUBSTITUTE, CyclicCodec, OutputConsumer
@@ -45,8 +45,6 @@ CCONTROL_PORT = 0xC001             # our UDP port for the ApplicationReady reque
 FRAMES_PER_WAKE = 64               # bounded work per readable event: a flood cannot starve the loop
 APP_READY_RETRIES, APP_READY_TIMEOUT_S = 5, 1.0
 SIGNAL_S = 3.0                     # how long the "flashing" shows after a DCP Signal
-#: Longest wait for the first output frame after Connect before the AR is aborted.
-FIRST_FRAME_S = 10.0
 
 
 class ProfinetError(RuntimeError):
@@ -135,7 +133,6 @@ class ProfinetDevice:
         self.last_abort = ""
         self._last_counter: int | None = None
         self._last_frame_t = 0.0
-        self._ar_start = 0.0
         self._seq = 0
         self._diag_ready = False
         self._next = 0.0
@@ -269,6 +266,7 @@ class ProfinetDevice:
                 if done is True and ar is self.cm.io_ar:
                     self._app_ready = None
                     ar.state = ARState.DATA
+                    ar.last_activity = time.monotonic()
                     log.info("PROFINET: ApplicationReady confirmed by %s: data exchange", ar.controller_ip)
                 elif done is False:
                     self._abort(ar, "the controller refused ApplicationReady")
@@ -334,7 +332,7 @@ class ProfinetDevice:
     def _set_name(self, name: str, permanent: bool) -> int:
         if self.cm.io_ar is not None and name != self.station.name:
             log.warning("PROFINET: DCP Set NameOfStation refused: an AR is established")
-            return 6   # "in operation"
+            return IN_OPERATION
         self.station.name = name
         if permanent:
             self.store.save(profinet_name=name)
@@ -344,7 +342,7 @@ class ProfinetDevice:
     def _set_ip(self, suite: IpSuite, permanent: bool) -> int:
         if self.cm.io_ar is not None and suite != self.station.ip:
             log.warning("PROFINET: DCP Set IP refused: an AR is established")
-            return 6
+            return IN_OPERATION
         self.station.ip = suite
         self.ipstack.ip = suite.ip
         self._check_conflict()
@@ -360,13 +358,18 @@ class ProfinetDevice:
         self._syslog("PROFINET: DCP Signal: the LED flashes (identify this gripper)")
 
     def _reset(self, mode: int) -> int:
+        """ResetToFactory mode 2 (reset communication parameters): NameOfStation and IP suite, the running
+        ones and the stored ones. Refused while an IO AR runs, like a Set (docs/fidelity.md "DCP during an AR")."""
         if self.cm.io_ar is not None:
-            self._abort(self.cm.io_ar, "reset to factory by DCP")
+            log.warning("PROFINET: DCP Reset to Factory refused: an AR is established")
+            return IN_OPERATION
         self.station.name = ""
         self.station.ip = IpSuite()
         self.ipstack.ip = NO_IP
         self.store.save(profinet_name="")
-        self._syslog(f"PROFINET: reset to factory settings (mode {mode}): station name and IP cleared")
+        self.store.forget("ip_address", "netmask", "gateway")
+        self._syslog(f"PROFINET: reset to factory settings (mode {mode}, communication parameters): station name "
+                     f"and IP cleared, also in the settings file")
         return OK
 
     def _syslog(self, text: str) -> None:
@@ -387,7 +390,6 @@ class ProfinetDevice:
         self.ar_count += 1
         self._last_counter = None
         self.consumer = OutputConsumer()
-        self._ar_start = time.monotonic()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
         if self._loop is not None:
@@ -462,17 +464,10 @@ class ProfinetDevice:
         if self.codec is not codec:
             return
         now = time.monotonic()
-        out_cr = codec.out_cr
-        if self._last_frame_t:
-            hold = out_cr.data_hold_factor * out_cr.cycle_s
-            if now - self._last_frame_t > hold:
-                self.watchdog_expiries += 1
-                self._abort(ar, f"watchdog: no output frame for {(now - self._last_frame_t) * 1000:.0f} ms "
-                                f"(data hold time {hold * 1000:g} ms)")
-                return
-        elif now - self._ar_start > max(FIRST_FRAME_S, ar.request.timeout_factor * 0.1):
+        why = self._supervise(ar, codec, now)
+        if why:
             self.watchdog_expiries += 1
-            self._abort(ar, "no output frame from the controller after Connect")
+            self._abort(ar, why)
             return
         try:
             inputs = self.controller.input_bytes()
@@ -489,6 +484,25 @@ class ProfinetDevice:
         if self._next < t - cycle:   # fell behind (a long pause): restart the schedule, do not burst
             self._next = t + cycle
         self._tick = loop.call_at(self._next, self._cycle)
+
+    def _supervise(self, ar: AR, codec: CyclicCodec, now: float) -> str:
+        """Why the AR must end now ("" while it may go on). Parameterization (Connect to PrmEnd) is
+        supervised by the controller's CMInitiatorActivityTimeout (ARBlockReq, factor × 100 ms) since its
+        last RPC for this AR; data exchange by the data hold time once output frames flow, and until the first
+        one by the activity timeout again (docs/fidelity.md "Startup supervision")."""
+        activity = ar.request.timeout_factor * 0.1
+        if ar.state == ARState.PARAMETERIZING and now - ar.last_activity > activity:
+            return (f"no PrmEnd within the CMInitiatorActivityTimeout ({activity:g} s) after the controller's "
+                    f"last request")
+        if self._last_frame_t:
+            out_cr = codec.out_cr
+            hold = out_cr.data_hold_factor * out_cr.cycle_s
+            if now - self._last_frame_t > hold:
+                return (f"watchdog: no output frame for {(now - self._last_frame_t) * 1000:.0f} ms "
+                        f"(data hold time {hold * 1000:g} ms)")
+        elif ar.state == ARState.DATA and now - ar.last_activity > activity:
+            return f"no output frame from the controller within the CMInitiatorActivityTimeout ({activity:g} s)"
+        return ""
 
     def _diagnosis(self, ar: AR, inputs: bytes) -> None:
         """Diagnosis alarms for listed error flags rising or clearing (002 §3.3), once data exchange runs."""
