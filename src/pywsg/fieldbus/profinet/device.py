@@ -30,6 +30,7 @@ from ..controller import FieldbusController
 from ..image import OutputImage
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
 from .ar import AR, ARState, ConnectionManager, Identity, Listener
+from .cyclic import CyclicThread, attach_filter
 from .dcp import IN_OPERATION, OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
 from .rpc import RPC_PORT
@@ -45,6 +46,9 @@ CCONTROL_PORT = 0xC001             # our UDP port for the ApplicationReady reque
 FRAMES_PER_WAKE = 64               # bounded work per readable event: a flood cannot starve the loop
 APP_READY_RETRIES, APP_READY_TIMEOUT_S = 5, 1.0
 SIGNAL_S = 3.0                     # how long the "flashing" shows after a DCP Signal
+#: Shortest period of the application's side of the cycle (input image, diagnosis), s: the cyclic thread
+#: sends every cycle, the image it sends is at most this old.
+APP_PERIOD_S = 0.002
 
 
 class ProfinetError(RuntimeError):
@@ -123,6 +127,7 @@ class ProfinetDevice:
         self.sock: socket.socket | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tick: asyncio.TimerHandle | None = None
+        self.rt: CyclicThread | None = None   # the AR's cyclic path (its own thread and socket)
         self._app_ready: tuple[uuid.UUID, int, AR] | None = None   # activity, tries, AR
         self._app_ready_timer: asyncio.TimerHandle | None = None
         self.consumer = OutputConsumer()
@@ -142,6 +147,7 @@ class ProfinetDevice:
     async def start(self) -> ProfinetDevice:
         self._loop = asyncio.get_running_loop()
         self.sock = open_raw_socket(self.iface)
+        attach_filter(self.sock, cyclic=False)   # the cyclic frames are the cyclic thread's (cyclic.py)
         self._loop.add_reader(self.sock.fileno(), self._readable)
         self._house = self._loop.call_later(1.0, self._housekeeping)
         attach = getattr(self.controller, "attach_bus", None)
@@ -164,6 +170,7 @@ class ProfinetDevice:
     async def close(self) -> None:
         if self.cm.io_ar is not None:
             self.cm.drop(self.cm.io_ar, "device stopped")
+        self._stop_rt()
         if self._tick is not None:
             self._tick.cancel()
         if self._app_ready_timer is not None:
@@ -247,7 +254,7 @@ class ProfinetDevice:
                     if self.alarms is not None:
                         for reply in self.alarms.handle(frame.payload[2:]):
                             self._send(reply)
-                else:
+                elif self.rt is None:   # a device not started (tests): the loop takes the frame itself
                     self._output_frame(frame.payload)
             return
         if frame.ethertype in (ETH_P_IP, 0x0806):
@@ -272,11 +279,20 @@ class ProfinetDevice:
                     self._abort(ar, "the controller refused ApplicationReady")
 
     def _output_frame(self, payload: bytes) -> None:
+        """An output frame (after the EtherType), taken and applied at once (the cyclic thread splits the two)."""
+        image = self._consume(payload)
+        if image is not None:
+            self._apply(image)
+
+    def _consume(self, payload: bytes) -> bytes | None:
+        """Bus statistics and the consumer rule for one output frame: the image to apply, or None. Runs on the
+        cyclic thread (it touches only counters and the codec, never the gripper)."""
         codec = self.codec
-        assert codec is not None
+        if codec is None:
+            return None
         out = codec.output(payload)
         if out is None:
-            return
+            return None
         self.frames_in += 1
         self._last_frame_t = time.monotonic()
         if self._last_counter is not None:
@@ -293,7 +309,11 @@ class ProfinetDevice:
                             "output image", self.consumer.substituting)
             else:
                 log.info("PROFINET: the controller's outputs are valid again (RUN, IOPS GOOD)")
-        if image is not None:
+        return image
+
+    def _apply(self, image: bytes) -> None:
+        """Hand an output image to the application (on the loop)."""
+        if self.codec is not None:   # not after the AR ended: its fail-safe image stands
             self.controller.write_outputs(OutputImage.unpack(image))
 
     def _send(self, frame: bytes) -> None:
@@ -392,11 +412,27 @@ class ProfinetDevice:
         self.consumer = OutputConsumer()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
-        if self._loop is not None:
+        self._stop_rt()
+        if self._loop is not None and self.sock is not None:
+            codec, loop = self.codec, self._loop
+            assert ar.input_cr is not None
+            try:
+                self.rt = CyclicThread(
+                    self.iface, ar.controller_mac, ar.output_frame_id, ar.input_cr.cycle_s,
+                    build=codec.input_frame, consume=self._consume,
+                    judge=lambda now: self._supervise(ar, codec, now), post=loop.call_soon_threadsafe,
+                    apply=self._apply, expired=lambda why: self._expired(ar, why), sent=self._sent)
+            except OSError as exc:
+                self.rt = None
+                log.warning("PROFINET: no socket for the cyclic thread (%s)", exc)
+                self._abort(ar, f"cannot start the cyclic path: {exc}")
+                return
+            self.rt.inputs = self._input_bytes()
+            self.rt.start()
             if self._tick is not None:
                 self._tick.cancel()
-            self._next = self._loop.time()
-            self._tick = self._loop.call_at(self._next, self._cycle)
+            self._next = loop.time()
+            self._tick = loop.call_at(self._next, self._cycle)
 
     def _prm_end(self, ar: AR) -> None:
         if self.codec is not None and ar is self.codec.ar:
@@ -430,6 +466,7 @@ class ProfinetDevice:
         if self.codec is not None and ar is self.codec.ar:
             self.codec = None
             self.alarms = None
+            self._stop_rt()
             if self._tick is not None:
                 self._tick.cancel()
                 self._tick = None
@@ -455,34 +492,42 @@ class ProfinetDevice:
             log.warning("PROFINET: controller lost (%s); no fail_safe on this FieldbusController", reason)
 
     # --- cyclic -----------------------------------------------------------------------------------------
-    def _cycle(self) -> None:
-        codec, loop = self.codec, self._loop
-        if codec is None or loop is None:
-            return
-        ar = codec.ar
-        self._readable()   # frames that waited while the loop was busy count before the watchdog judges
-        if self.codec is not codec:
-            return
-        now = time.monotonic()
-        why = self._supervise(ar, codec, now)
-        if why:
+    def _stop_rt(self) -> None:
+        if self.rt is not None:
+            self.rt.stop()
+            self.rt = None
+
+    def _sent(self) -> None:
+        self.frames_out += 1
+
+    def _expired(self, ar: AR, why: str) -> None:
+        """The cyclic thread's verdict (on the loop): the AR ends."""
+        if ar is self.cm.io_ar:
             self.watchdog_expiries += 1
             self._abort(ar, why)
-            return
+
+    def _input_bytes(self) -> bytes:
         try:
-            inputs = self.controller.input_bytes()
+            return self.controller.input_bytes()
         except Exception:
             log.exception("PROFINET: input image")
-            inputs = bytes(12)
-        self._send(codec.input_frame(inputs))
-        self.frames_out += 1
+            return bytes(12)
+
+    def _cycle(self) -> None:
+        """The application's side of the cycle, on the loop: a fresh input image for the cyclic thread to
+        send, and the diagnosis alarms; every cycle, at most every :data:`APP_PERIOD_S`."""
+        codec, loop, rt = self.codec, self._loop, self.rt
+        if codec is None or loop is None or rt is None:
+            return
+        inputs = self._input_bytes()
+        rt.inputs = inputs
         if self.alarms is not None:
-            self._diagnosis(ar, inputs)
-        cycle = codec.in_cr.cycle_s
-        self._next += cycle
+            self._diagnosis(codec.ar, inputs)
+        period = max(codec.in_cr.cycle_s, APP_PERIOD_S)
+        self._next += period
         t = loop.time()
-        if self._next < t - cycle:   # fell behind (a long pause): restart the schedule, do not burst
-            self._next = t + cycle
+        if self._next < t - period:   # fell behind (a long pause): restart the schedule, do not burst
+            self._next = t + period
         self._tick = loop.call_at(self._next, self._cycle)
 
     def _supervise(self, ar: AR, codec: CyclicCodec, now: float) -> str:
