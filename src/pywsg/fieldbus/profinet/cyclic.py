@@ -102,6 +102,9 @@ class CyclicThread:
             self.sock.close()
             raise
         self.late_max = 0.0   # the latest an input frame left after its due time, s (bus statistics)
+        self.gap_max = 0.0    # the longest time between two output frames taken, s
+        self.unsent = 0       # input frames the socket refused (send buffer full)
+        self._last_rx = 0.0
         self._thread = threading.Thread(target=self._run, name=f"profinet-cyclic-{iface}", daemon=True)
 
     def start(self) -> None:
@@ -111,6 +114,8 @@ class CyclicThread:
 
     def stop(self) -> None:
         """Stop the thread and close its socket (waits for it unless called from it)."""
+        log.info("PROFINET: cyclic path on %s: input frames at most %.2f ms late, output frames at most %.2f ms "
+                 "apart, %d not sent (send buffer full)", self.iface, self.late_max * 1000, self.gap_max * 1000, self.unsent)
         self._stop.set()
         if self._thread.is_alive() and threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
@@ -146,7 +151,7 @@ class CyclicThread:
                         self.sock.send(self.build(self.inputs))
                         self.sent()
                     except (BlockingIOError, InterruptedError):
-                        pass
+                        self.unsent += 1
                     due += cycle
                     if due < now - cycle:   # fell behind (the machine stalled): restart the schedule, no burst
                         due = now + cycle
@@ -171,6 +176,10 @@ class CyclicThread:
             off = 16 if data[12:14] == b"\x81\x00" else 12
             if int.from_bytes(data[off + 2:off + 4], "big") != self.frame_id:
                 continue
+            now = time.monotonic()
+            if self._last_rx:
+                self.gap_max = max(self.gap_max, now - self._last_rx)
+            self._last_rx = now
             image = self.consume(data[off + 2:])
             if image is not None:
                 self.post(self.apply, image)

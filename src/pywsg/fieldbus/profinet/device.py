@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import errno
+import gc
 import logging
 import os
 import socket
@@ -154,6 +155,11 @@ class ProfinetDevice:
         if attach is not None:
             attach(self)
         self._check_conflict()
+        # A full garbage collection holds the GIL, and so the cyclic thread, for as long as it walks every
+        # object; what exists once the device is up lives as long as the process: freeze it, so the
+        # collections that remain are short (a 1 ms cycle is shorter than a full one).
+        gc.collect()
+        gc.freeze()
         log.info("PROFINET: %s", self.line())
         return self
 
