@@ -197,8 +197,10 @@ def test_wrong_expected_submodule_gets_a_module_diff_and_bad_iops() -> None:
 
 def test_cycle_shorter_than_the_device_interval_is_refused() -> None:
     cm = ConnectionManager(_station(), Identity("WSG 50", "1"))
-    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=4)), "x", 1))
-    assert status == 0xDB81020B and cm.io_ar is None
+    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=1)), "x", 1))
+    assert status == 0xDB81020B and cm.io_ar is None   # 1 ms < MinDeviceInterval 64 (2 ms)
+    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=2)), "x", 1))
+    assert status == 0 and cm.io_ar is not None
 
 
 def test_malformed_rpc_never_raises_and_retransmissions_get_the_same_answer() -> None:

@@ -6,16 +6,23 @@ level)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from .conftest import STATION, Wire
+from .test_wire import Capture
+from .tshark import flagged, needs_tshark
 
 pytestmark = pytest.mark.realtime
 
 
-def test_provider_stop_and_iops_bad_stop_the_jog_on_the_wire(wire: Wire) -> None:
+@needs_tshark
+def test_provider_stop_and_iops_bad_stop_the_jog_on_the_wire(wire: Wire, tmp_path: Path) -> None:
+    cap = Capture(wire, tmp_path / "substitute.pcapng")
     sim = wire.sim("-v")
     r = wire.controller("substitute", STATION, timeout=90)
+    cap.stop()
 
     def moved(phase: str) -> float:
         a, b = r[phase]   # type: ignore[misc]
@@ -29,3 +36,4 @@ def test_provider_stop_and_iops_bad_stop_the_jog_on_the_wire(wire: Wire) -> None
     assert moved("run_again") > 5.0, r
     assert "ProviderState STOP" in err and "IOPS BAD" in err and "substitute values" in err
     assert "Traceback" not in err
+    assert flagged(cap.path) == []   # the session, STOP frames and alarms included, decodes clean (item 9)

@@ -115,7 +115,8 @@ class CyclicThread:
     def stop(self) -> None:
         """Stop the thread and close its socket (waits for it unless called from it)."""
         log.info("PROFINET: cyclic path on %s: input frames at most %.2f ms late, output frames at most %.2f ms "
-                 "apart, %d not sent (send buffer full)", self.iface, self.late_max * 1000, self.gap_max * 1000, self.unsent)
+                 "apart, %d not sent (send buffer full)", self.iface, self.late_max * 1000, self.gap_max * 1000,
+                 self.unsent)
         self._stop.set()
         if self._thread.is_alive() and threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
