@@ -209,6 +209,9 @@ class ProfinetDevice:
         rows["Frames in / out"] = f"{self.frames_in} / {self.frames_out}"
         if ar is not None and self.consumer.substituting:
             rows["Outputs"] = f"substitute values (zero image): {self.consumer.substituting}"
+        if self.rt is not None:
+            rows["Cyclic path"] = (f"input frames at most {self.rt.late_max * 1000:.1f} ms late, output frames at "
+                                   f"most {self.rt.gap_max * 1000:.1f} ms apart")
         rows["Missed frames"] = str(self.missed)
         rows["Watchdog expiries"] = str(self.watchdog_expiries)
         if self.alarms is not None and self.alarms.sent:
