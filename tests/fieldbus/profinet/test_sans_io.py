@@ -193,6 +193,11 @@ def test_wrong_expected_submodule_gets_a_module_diff_and_bad_iops() -> None:
     codec.provider_ok = True
     frame = codec.input_frame(bytes(range(12)))
     assert bytes(range(12)) not in frame   # the wrong submodule's data is not sent
+    # DataStatus: 35h; StationProblemIndicator 0 (15h) while a diagnosis is pending (IEC 61158-6-10)
+    c_sdu_end = 18 + 2 + cm.io_ar.input_cr.data_length   # type: ignore[union-attr]
+    assert frame[c_sdu_end + 2] == 0x35
+    codec.station_problem = True
+    assert codec.input_frame(bytes(12))[c_sdu_end + 2] == 0x15
 
 
 def test_cycle_shorter_than_the_device_interval_is_refused() -> None:

@@ -17,11 +17,13 @@ from pywsg.fieldbus.profinet import rpc
 from pywsg.fieldbus.profinet.ar import ARState
 from pywsg.fieldbus.profinet.dcp import DcpHandlers, DcpResponder
 from pywsg.fieldbus.profinet.device import ProfinetDevice
+from pywsg.fieldbus.profinet.ether import ether, mac_text
 from pywsg.fieldbus.profinet.refusals import RefusalLog
 from pywsg.fieldbus.profinet.station import IpSuite, PermanentStore
 
 from ..test_controller import Rig
 from .test_sans_io import MAC, MCAST, REAL_EXPECTED, _blocks_of, _connect_args, _dcp_frame, _rpc_request, _station
+from .tshark import counts, flagged, needs_tshark, write_pcap
 
 RESET = (5, 6)
 
@@ -138,3 +140,25 @@ def test_refused_packets_log_at_a_bounded_rate(caplog: pytest.LogCaptureFixture)
     rl.warn("refused %s", "y")
     assert [r.getMessage() for r in caplog.records] == ["refused x", "refused x",
                                                         "refused y (3 more refused since, not logged)"]
+
+
+@needs_tshark
+def test_wireshark_reads_the_dcp_answers_clean(tmp_path: Path) -> None:
+    """Identify (all, by name), Get, Set, a refused and an accepted Reset to Factory, and garbage: every
+    answer the responder builds decodes in tshark without Malformed or Error-level expert info (item 9)."""
+    dcp = DcpResponder(_station(), DcpHandlers(lambda n, p: 0, lambda s, p: 0, lambda: None, lambda m: 0))
+    requests = [_dcp_frame(MCAST, 0xFEFE, 5, b"\xff\xff\x00\x00"),
+                _dcp_frame(MCAST, 0xFEFE, 5, b"\x02\x02\x00\x05wsg50\x00"),
+                _dcp_frame(MAC, 0xFEFD, 3, b"\x02\x02\x01\x02\x02\x07\x05\x06"),
+                _dcp_frame(MAC, 0xFEFD, 4, b"\x02\x02\x00\x0a\x00\x01new-name"),
+                _dcp_frame(MAC, 0xFEFD, 4, _reset_block(9)),
+                _dcp_frame(MAC, 0xFEFD, 4, _reset_block(2)),
+                _dcp_frame(MAC, 0xFEFD, 4, b"\x02\x02\x00\x06\x00\x00Bad_N\x00")]
+    frames = []
+    for req in requests:
+        frames.append(ether(req.dst, req.src, 0x8892, req.payload))
+        frames.extend(reply for _delay, reply in dcp.handle(req))
+    assert len(frames) == 2 * len(requests)
+    pcap = write_pcap(tmp_path / "dcp.pcap", frames)
+    assert flagged(pcap) == []
+    assert counts(pcap, f"eth.src == {mac_text(MAC)} && pn_dcp") == len(requests)
