@@ -1,22 +1,26 @@
 #!/usr/bin/env bash
 # Runs the whole test suite on a fresh machine: installs what it needs (a venv with the package and
 # its test extras; Debian's chromium, mbpoll, tshark and npm for the browser, Modbus-master and capture
-# tests; axe-core from npm for the accessibility check), then lint, types (also for Python 3.10), the
+# tests; socat for serial lines with a real port's code path; axe-core from npm for the accessibility check), then lint, types (also for Python 3.10), the
 # package build (python -m build + twine check, in tests/test_packaging.py) and pytest in parallel
 # (pytest-xdist). Extra arguments go to pytest; without any, the fieldbus tests also run on the oldest
-# supported pymodbus.
+# supported pymodbus, and the suite (all but the browser tests) on the oldest and the newest supported Python
+# (scripts/other-python.sh; the versions are the lowest and highest "Programming Language :: Python :: 3.X"
+# classifiers of pyproject.toml), beside the main run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
     "$PY" -m venv .venv
 fi
+echo "== installing pywsg[test] into .venv (first run: a minute or so)"
 .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[test]"
 need=()
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
 command -v mbpoll >/dev/null 2>&1 || need+=(mbpoll)
 command -v tshark >/dev/null 2>&1 || need+=(tshark)
 command -v npm >/dev/null 2>&1 || need+=(npm)
+command -v socat >/dev/null 2>&1 || need+=(socat)
 if [ ${#need[@]} -gt 0 ]; then
     SUDO=""
     [ "$(id -u)" -eq 0 ] || SUDO="sudo"
@@ -43,6 +47,8 @@ export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
 WORKERS=${PYTEST_WORKERS:-$(( $(nproc) + 1 ))}
 XDIST=(-n "$WORKERS" --dist loadfile)
 old_pid=""
+py_pids=()
+py_vers=()
 if [ $# -eq 0 ]; then
     # The pymodbus pin's lower end (pyproject.toml) is supported too: the tests marked `pymodbus` run once more on
     # it (the installed, newest pymodbus shadowed by the oldest allowed one), beside the main run: both mostly
@@ -54,7 +60,17 @@ if [ $# -eq 0 ]; then
     PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --dist load -m pymodbus \
         >.venv/pytest-oldest-pymodbus.log 2>&1 &
     old_pid=$!
-    trap '[ -n "$old_pid" ] && kill "$old_pid" 2>/dev/null' EXIT
+    # The oldest and the newest supported Python run the suite but its browser tests beside the main run
+    # (the browser tests drive pages, not the interpreter; they run once, on the default Python).
+    mapfile -t pys < <(sed -n 's/^ *"Programming Language :: Python :: \(3\.[0-9]*\)".*/\1/p' pyproject.toml | sort -t. -k2,2n)
+    [ ${#pys[@]} -ge 2 ] || { echo "no Python version classifiers in pyproject.toml" >&2; exit 1; }
+    for v in "${pys[0]}" "${pys[-1]}"; do
+        [ "$v" = "$(.venv/bin/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')" ] && continue
+        bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser" >".venv/pytest-py$v.log" 2>&1 &
+        py_pids+=("$!")
+        py_vers+=("$v")
+    done
+    trap 'for p in "$old_pid" "${py_pids[@]}"; do [ -n "$p" ] && kill "$p" 2>/dev/null; done' EXIT
 fi
 echo "== pytest ($WORKERS workers)"
 status=0
@@ -67,4 +83,21 @@ if [ -n "$old_pid" ]; then
     tail -n 25 .venv/pytest-oldest-pymodbus.log
     [ "$old_status" -eq 0 ] || status=$old_status
 fi
+for i in "${!py_pids[@]}"; do
+    v=${py_vers[$i]}
+    py_status=0
+    wait "${py_pids[$i]}" || py_status=$?
+    echo "== the suite but its browser tests, on Python $v (scripts/other-python.sh; run beside the main run)"
+    if [ "$py_status" -eq 3 ]; then
+        # no interpreter: say so loudly; fail only where every version is required
+        cat ".venv/pytest-py$v.log"
+        echo "WARNING: Python $v NOT TESTED: no interpreter found (see docs/testing.md)"
+        [ "${PYWSG_REQUIRE_PYTHONS:-0}" = 1 ] && status=1
+        continue
+    fi
+    grep -E '^(FAILED|ERROR) ' ".venv/pytest-py$v.log" || true
+    tail -n 3 ".venv/pytest-py$v.log"
+    [ "$py_status" -eq 0 ] || status=$py_status
+done
+py_pids=()
 exit "$status"

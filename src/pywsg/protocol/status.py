@@ -43,6 +43,11 @@ class Status(IntEnum):
     def __str__(self) -> str:  # print(status) -> E_ACCESS_DENIED, not 16 (IntEnum prints the number)
         return self.name
 
+    def __format__(self, spec: str) -> str:
+        # Python 3.10's Enum.__format__ formats str(self) once __str__ is overridden, so f"{status:d}"
+        # raised ValueError there; 3.11 formats the number. A spec formats the number on every version.
+        return str(self) if not spec else int.__format__(int(self), spec)
+
     @property
     def description(self) -> str:
         """The manual's one-line meaning of this status code."""
