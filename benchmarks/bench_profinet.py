@@ -85,6 +85,22 @@ def controller(iface: str, station: str, cycle_ms: int, seconds: float) -> None:
                       "jitter_max": jit[-1]}), flush=True)
 
 
+def flood(port: int) -> None:
+    """Runs in the device namespace: 43h Get Width requests to the sim's TCP port, back to back, answers read
+    and dropped, until killed (a client as busy as the binary protocol allows)."""
+    from pywsg.protocol.frame import encode_frame
+
+    req = encode_frame(0x43, b"\x00\x00") * 16
+    while True:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+                while True:
+                    s.sendall(req)
+                    s.recv(65536)
+        except OSError:
+            time.sleep(0.1)
+
+
 def _ip(*args: str) -> None:
     subprocess.run(["ip", *args], check=True, capture_output=True)
 
@@ -97,11 +113,17 @@ def main() -> None:
                     help="let the sim accept cycles down to this many 31.25 us units (default: the GSDML's)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes (yes >/dev/null) to run meanwhile")
     ap.add_argument("--sim-log", type=Path, help="write the sim's log here")
+    ap.add_argument("--flood", type=int, default=0, metavar="N",
+                    help="N clients flooding the sim's TCP command port meanwhile (the rest of the process busy)")
+    ap.add_argument("--flood-client", nargs=1, metavar="PORT", help=argparse.SUPPRESS)
     ap.add_argument("--rt", type=int, default=0, metavar="PRIO",
                     help="run the sim and the controller under SCHED_FIFO at this priority (chrt -f PRIO); 0: normal")
     ap.add_argument("--controller", nargs=4, metavar=("IFACE", "STATION", "CYCLE_MS", "SECONDS"),
                     help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.flood_client:
+        flood(int(args.flood_client[0]))
+        return
     if args.controller:
         iface, station, cycle, secs = args.controller
         controller(iface, station, int(cycle), float(secs))
@@ -127,12 +149,16 @@ def main() -> None:
                    f"a.MIN_DEVICE_INTERVAL = {args.min_interval}; from pywsg.cli.main import main; main()"]
         hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
         print(f"priority: {'SCHED_FIFO ' + str(args.rt) if args.rt else 'normal'}; CPU hogs: {args.hogs}; "
+              f"TCP flood clients: {args.flood}; "
               f"{os.cpu_count()} CPUs; load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         sim = subprocess.Popen(["ip", "netns", "exec", dev, *chrt, *wsg, "-v", "sim", "--no-uvloop", "--tcp-port", "0",
                                 "--udp-port", "0", "--serial", "off", "--web-port", "off", "--profinet", "eth0",
+                                *(["--tcp-port", "1000"] if args.flood else []),
                                 "--profinet-name", "wsg-bench", "--profinet-ip", "192.168.77.2/24"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         time.sleep(3)
+        hogs += [subprocess.Popen(["ip", "netns", "exec", dev, sys.executable, __file__, "--flood-client", "1000"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(args.flood)]
         print(f"{'cycle':>6} {'frames':>7} {'expiries':>8} {'jitter p50/p99/max ms':>24}  held")
         results = []
         for cycle in (int(c) for c in args.cycles.split(",")):
