@@ -101,7 +101,7 @@ class CyclicThread:
         except OSError:
             self.sock.close()
             raise
-        self.late_max = 0.0   # the latest an input frame left after its due time, s (bus statistics)
+        self.late_max = 0.0   # the latest an input frame left after its due time once output frames flow, s
         self.gap_max = 0.0    # the longest time between two output frames taken, s
         self.unsent = 0       # input frames the socket refused (send buffer full)
         self._last_rx = 0.0
@@ -147,7 +147,8 @@ class CyclicThread:
                     if why:
                         self.post(self.expired, why)
                         return
-                    self.late_max = max(self.late_max, now - due)
+                    if self._last_rx:   # data exchange runs (start-up is the loop's busiest moment: not counted)
+                        self.late_max = max(self.late_max, now - due)
                     try:
                         self.sock.send(self.build(self.inputs))
                         self.sent()
