@@ -15,6 +15,14 @@ if [ ! -x .venv/bin/python ]; then
 fi
 echo "== installing pywsg[test] into .venv (first run: a minute or so)"
 .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[test]"
+# The virtual gripper's container image for the tests marked `container` (tests/container), built beside lint
+# and the other tests; installs podman, runc and mmdebstrap when missing (docs/container.md, "The tests").
+echo "== the container image for the container tests (scripts/container-env.sh; log: .venv/container-env.log), in the background"
+bash scripts/container-env.sh start >.venv/container-env.log 2>&1 &
+container_pid=$!
+old_pid=""
+py_pids=()
+trap 'for p in "$old_pid" "$container_pid" "${py_pids[@]}"; do [ -n "$p" ] && kill "$p" 2>/dev/null; done' EXIT
 need=()
 command -v chromium >/dev/null 2>&1 || need+=(chromium)
 command -v mbpoll >/dev/null 2>&1 || need+=(mbpoll)
@@ -34,20 +42,28 @@ fi
 if [ ! -f .venv/axe/node_modules/axe-core/axe.min.js ]; then
     npm install --prefix .venv/axe --no-save --no-audit --no-fund --loglevel=error axe-core@4 >/dev/null
 fi
+# The ROS 2 test environment (.venv-ros: pinned ROS 2 wheels, two interface packages built with cmake) is built
+# once and reused; on a fresh clone it builds beside the lint and type checks below (about 2 minutes of CPU).
+echo "== the ROS 2 test environment (scripts/ros-env.sh; log: .venv/ros-env.log), beside the checks"
+bash scripts/ros-env.sh >.venv/ros-env.log 2>&1 &
+ros_pid=$!
 echo "== ruff (target: Python 3.10)"
 .venv/bin/ruff check src tests benchmarks
 echo "== mypy (strict, Python 3.10)"
 .venv/bin/mypy
 echo "== import contracts (.importlinter)"
 .venv/bin/lint-imports --no-cache
+if ! wait "$ros_pid"; then
+    tail -n 30 .venv/ros-env.log
+    echo "scripts/ros-env.sh failed: the ROS 2 tests cannot run (log above)" >&2
+    exit 1
+fi
 # Hypothesis: the same examples every run, no example database (tests/conftest.py)
 export HYPOTHESIS_PROFILE=${HYPOTHESIS_PROFILE:-ci}
 # Workers: tests mostly wait (sockets, subprocesses, a browser), so one more than the cores keeps 2 cores busy.
 # --dist loadfile: the tests of a module run on one worker, in order, sharing its module-scoped fixtures.
 WORKERS=${PYTEST_WORKERS:-$(( $(nproc) + 1 ))}
 XDIST=(-n "$WORKERS" --dist loadfile)
-old_pid=""
-py_pids=()
 py_vers=()
 if [ $# -eq 0 ]; then
     # The pymodbus pin's lower end (pyproject.toml) is supported too: the tests marked `pymodbus` run once more on
@@ -66,11 +82,10 @@ if [ $# -eq 0 ]; then
     [ ${#pys[@]} -ge 2 ] || { echo "no Python version classifiers in pyproject.toml" >&2; exit 1; }
     for v in "${pys[0]}" "${pys[-1]}"; do
         [ "$v" = "$(.venv/bin/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')" ] && continue
-        bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser" >".venv/pytest-py$v.log" 2>&1 &
+        bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser and not container" >".venv/pytest-py$v.log" 2>&1 &
         py_pids+=("$!")
         py_vers+=("$v")
     done
-    trap 'for p in "$old_pid" "${py_pids[@]}"; do [ -n "$p" ] && kill "$p" 2>/dev/null; done' EXIT
 fi
 echo "== pytest ($WORKERS workers)"
 status=0
@@ -100,4 +115,7 @@ for i in "${!py_pids[@]}"; do
     [ "$py_status" -eq 0 ] || status=$py_status
 done
 py_pids=()
+wait "$container_pid" 2>/dev/null || true   # the container tests waited for it; a failed build failed them
+container_pid=""
+bash scripts/container-env.sh clean          # the test image goes; the Debian base pywsg-base:bookworm stays
 exit "$status"

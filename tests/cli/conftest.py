@@ -20,6 +20,7 @@ from pywsg import Gripper
 from pywsg.protocol import SystemFlag
 
 from ..ports import free_port
+from ..simlog import assert_no_traceback
 
 WSG = Path(sys.executable).with_name("wsg")
 
@@ -106,6 +107,7 @@ class Sim:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
+        assert_no_traceback(self.banner)
 
 
 @pytest.fixture(scope="module")

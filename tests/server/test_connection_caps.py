@@ -24,10 +24,11 @@ pytestmark = pytest.mark.pymodbus  # the Modbus/TCP server: also run on the olde
 MODBUS_READ = struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 2)  # FC4: read 2 input registers at 0
 
 
-def idle(port: int, n: int) -> list[socket.socket]:
+def idle(port: int, n: int, source: str = "127.0.0.1") -> list[socket.socket]:
+    """``n`` connections to ``port`` from the loopback address ``source``."""
     out = []
     for _ in range(n):
-        s = socket.create_connection(("127.0.0.1", port), timeout=5)
+        s = socket.create_connection(("127.0.0.1", port), timeout=5, source_address=(source, 0))
         out.append(s)
     return out
 
@@ -81,8 +82,10 @@ def test_modbus_and_web_are_capped_and_the_command_port_still_answers(
                       limits=Limits(modbus_connections=8, web_connections=8))
     g = sim.g
     mb = idle(g.modbus_port, 100)
+    assert alive(mb, expect=6) == 6  # one peer address: 6 of the 8 (PEER_SHARE), issue 33 item 10
+    mb += idle(g.modbus_port, 10, source="127.0.0.2")
     web = idle(g.web_port, 100)
-    assert alive(mb, expect=8) == 8
+    assert alive(mb, expect=8) == 8  # the other 2 went to another address
     assert alive(web, expect=8) == 8
     c = TcpClient(g.tcp_port)
     assert c.request(0x06, b"hi").status == Status.E_SUCCESS
@@ -163,3 +166,51 @@ def test_silent_peers_are_closed_after_the_idle_timeout_and_a_polling_master_is_
     assert master.recv(256)[7] == 4
     master.close()
     assert modbus_answers(g.modbus_port) and web_answers(g.web_port)  # the freed slots serve again
+
+
+def test_trickling_peers_are_closed_and_cannot_take_every_slot(
+    sim_factory: Callable[..., SimThread], monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 33 item 10: 32 connections trickling one byte every 2 s under a 3 s idle timeout kept the
+    cap full and refused 8 of 8 PLC probes. Now an ADU must be whole ADU_DEADLINE s after its first byte
+    (0.5 s here, 2 s by default), and one peer address holds at most PEER_SHARE of the cap."""
+    from pywsg.fieldbus.modbus import server as modbus_server
+
+    monkeypatch.setattr(modbus_server, "ADU_DEADLINE", 0.5)
+    sim = sim_factory(tcp_port=None, udp_port=None, modbus_port=0, web_port=None,
+                      limits=Limits(modbus_connections=8, idle_timeout=3.0))
+    port = sim.g.modbus_port
+    trickle = idle(port, 8, source="127.0.0.2")
+    assert alive(trickle, expect=6) == 6
+    kept = [s for s in trickle if _open_now([s])]
+    probes = 0
+    start = time.monotonic()
+    while time.monotonic() - start < 1.5:  # three deadlines of trickling, one byte every 0.3 s
+        for s in kept:
+            try:
+                s.send(MODBUS_READ[:1])
+            except OSError:
+                pass
+        assert modbus_answers(port), "a PLC probe from another address was refused"
+        probes += 1
+        time.sleep(0.3)
+    for s in kept:
+        assert _closed_within(s, 10), "a trickling peer kept its connection past the ADU deadline"
+    for s in trickle:
+        s.close()
+    assert probes >= 2 and modbus_answers(port)
+
+
+def test_a_request_split_over_segments_within_the_deadline_is_answered(
+    sim_factory: Callable[..., SimThread],
+) -> None:
+    """The ADU deadline does not hurt a master whose request arrives in pieces a few ms apart."""
+    sim = sim_factory(tcp_port=None, udp_port=None, modbus_port=0, web_port=None)
+    with socket.create_connection(("127.0.0.1", sim.g.modbus_port), timeout=5) as s:
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        for _ in range(3):
+            for b in MODBUS_READ:
+                s.send(bytes([b]))
+                time.sleep(0.01)
+            reply = s.recv(256)
+            assert reply[:2] == MODBUS_READ[:2] and reply[7] == 4

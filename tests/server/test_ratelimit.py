@@ -80,3 +80,20 @@ def test_bad_parameters() -> None:
     for kwargs in ({"rate": 0, "burst": 1}, {"rate": 1, "burst": 0}, {"rate": 1, "burst": 1, "max_clients": 0}):
         with pytest.raises(ValueError):
             RequestRate(**kwargs)
+
+
+def test_many_addresses_together_are_bounded_by_the_total() -> None:
+    """Issue 33 item 11: 64 loopback addresses each got their own burst (20,889 answers for 1 MiB,
+    50 times one address's CPU). The total bucket holds TOTAL_FACTOR bursts and refills at that rate."""
+    from pywsg.server.ratelimit import TOTAL_FACTOR
+
+    clock = Clock()
+    r = RequestRate(rate=20.0, burst=200, clock=clock)
+    served = sum(r.take(f"127.0.0.{1 + i % 64}") == 0.0 for i in range(64 * 200))
+    assert served == 200 * TOTAL_FACTOR  # not 64 bursts
+    clock.now += 1.0  # one second refills the total at TOTAL_FACTOR x the rate
+    served = sum(r.take(f"127.0.0.{1 + i % 64}") == 0.0 for i in range(64 * 200))
+    assert served == 20 * TOTAL_FACTOR
+    # one client alone is still limited by its own bucket first
+    clock.now += 100.0
+    assert [r.take("192.0.2.1") for _ in range(201)].count(0.0) == 200

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from ..ports import free_port
+from ..simlog import assert_no_traceback
 
 WSG = [sys.executable, "-c", "from pywsg.cli.main import main; main()"]
 ENV = dict(os.environ, PYTHONUNBUFFERED="1", WSG_NO_ENV="1")
@@ -51,7 +52,8 @@ class SimProc:
         self.modbus_port = free_port() if modbus else 0
         modbus_arg = str(self.modbus_port) if modbus else "off"
         web_port = free_port()  # the CLI's 0 means "off"
-        argv = [*WSG, "sim", "--no-uvloop", "--tcp-port", str(self.tcp_port), "--udp-port", "0",
+        # the default loop as shipped (uvloop when installed); tests/cli's sims run stock asyncio
+        argv = [*WSG, "sim", "--tcp-port", str(self.tcp_port), "--udp-port", "0",
                 "--serial", "off", "--web-port", str(web_port), "--modbus-port", modbus_arg, *args]
         self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV)
         self.out: list[str] = []
@@ -112,3 +114,5 @@ def sim_proc() -> Iterator[type[SimProc]]:
     yield _Tracked
     for s in started:
         s.stop()
+    for s in started:
+        assert_no_traceback(s.out)

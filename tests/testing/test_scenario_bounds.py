@@ -61,7 +61,7 @@ def _load_and_run(path: Path) -> float:
     for _ in range(50):
         runner.state_changed(runner.gripper.snapshot().gripper_state.__class__.HOLDING, 0.0)
         runner.state_changed(runner.gripper.snapshot().gripper_state.__class__.IDLE, 0.0)
-    assert len(runner.log) >= len(scenario.events) // 2
+    assert runner.actions >= len(scenario.events) // 2
     return time.process_time() - t0
 
 
@@ -75,3 +75,51 @@ def test_scenario_cost_is_linear_in_its_events(tmp_path: Path) -> None:
     base = min(_load_and_run(small) for _ in range(2))
     cost = min(_load_and_run(big) for _ in range(2))
     assert cost < 8 * base, (cost, base)
+
+
+# Issue 33 item 8: a typo'd event key is an error naming the file's line, not a parameter silently ignored.
+@pytest.mark.parametrize("text, line, key", [
+    ('[[event]]\nat = 1\ndo = "part"\nwidht = 20\n', 4, "widht"),
+    ('description = "x"\n\n[[event]]\nat = 0\ndo = "heat"\ndelta_c = 1\n\n[[event]]\nbefore = "GRIP"\n'
+     'do = "fault"\nkind = "power"\nfinger = 1\ntimout = 2\n', 13, "timout"),
+    ('[[event]]\nat = 1\ndo = "remove_part"\nwidth = 3\n', 4, "width"),
+])
+def test_an_unknown_event_key_is_an_error_with_its_line(tmp_path: Path, text: str, line: int, key: str) -> None:
+    path = tmp_path / "typo.toml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError) as info:
+        Scenario.load(path)
+    assert str(info.value).startswith(f"{path}:{line}: ") and f"{key}: not a parameter" in str(info.value), info.value
+
+
+def test_the_world_api_refuses_an_unknown_key_too() -> None:
+    from pywsg.testing import WorldError, apply
+
+    g = VirtualGripper("wsg50", clock=ManualClock())
+    with pytest.raises(WorldError) as info:
+        apply(g, "part", {"widht": 20})
+    assert info.value.field == "widht"
+    assert g.snapshot().part is None  # nothing was placed
+
+
+# Issue 33 item 9: a `before` event fires on every matching request; what it keeps and reports is bounded.
+def test_a_before_event_on_every_request_keeps_a_bounded_log(tmp_path: Path) -> None:
+    from pywsg.protocol import CATALOG
+    from pywsg.testing.scenario import LOG_LIMIT, REPORT_BURST
+
+    path = tmp_path / "every.toml"
+    path.write_text('[[event]]\nbefore = "GRIP"\ndo = "heat"\ndelta_c = 0\n')
+    clock = ManualClock()
+    told: list[str] = []
+    runner = ScenarioRunner(Scenario.load(path), VirtualGripper("wsg50", clock=clock),
+                            on_action=lambda _t, line: told.append(line))
+    grip = next(c.id for c in CATALOG.values() if c.name == "GRIP_PART")
+    n = 3 * LOG_LIMIT
+    for _ in range(n):  # all at one instant: a flood
+        runner.before_command(grip, clock.now)
+    assert runner.actions == n and len(runner.log) == LOG_LIMIT
+    assert len(told) == REPORT_BURST  # the rest counted, not printed
+    clock.advance(10.0)
+    runner.before_command(grip, clock.now)
+    assert told[-2] == f"... {n - REPORT_BURST} more scenario action(s) not shown", told[-3:]
+    assert told[-1].startswith("temperature changed")

@@ -42,12 +42,34 @@ T = TypeVar("T")
 REMOTE_PASSWORD = "correct horse battery"
 
 
-class LiveSim:
-    """One virtual gripper served on TCP, Modbus/TCP and the web interface, in a loop thread."""
+def new_loop(kind: str) -> asyncio.AbstractEventLoop:
+    """``"default"``: the loop ``wsg sim`` runs on as shipped (uvloop when installed, as ``[web]`` does);
+    ``"asyncio"``: stock asyncio (``wsg sim --no-uvloop``)."""
+    if kind == "default":
+        try:
+            import uvloop
+        except ImportError:  # pragma: no cover - [web] brings it
+            pass
+        else:
+            return uvloop.new_event_loop()
+    return asyncio.new_event_loop()
 
-    def __init__(self, tmp: Path, host: str = "127.0.0.1", **web_kwargs: Any) -> None:
+
+class LiveSim:
+    """One virtual gripper served on TCP, Modbus/TCP and the web interface, in a loop thread.
+
+    ``loop``: ``"asyncio"`` (stock) or ``"default"`` (as shipped: uvloop when installed). The shared
+    per-module sim runs on the default loop, the others on stock asyncio, so the web tests meet both. An
+    exception the loop reports (``Exception in callback ...``, which ``wsg sim`` would print as a
+    traceback) fails the test at close.
+    """
+
+    def __init__(self, tmp: Path, host: str = "127.0.0.1", loop: str = "asyncio", **web_kwargs: Any) -> None:
         self.settings_path = tmp / "settings.json"
-        self.loop = asyncio.new_event_loop()
+        self.loop = new_loop(loop)
+        self.loop_errors: list[str] = []
+        self.loop.set_exception_handler(
+            lambda _loop, context: self.loop_errors.append(f"{context.get('message')}: {context.get('exception')!r}"))
         self.thread = threading.Thread(target=self.loop.run_forever, name="live-sim", daemon=True)
         self.thread.start()
         self.web_kwargs = web_kwargs
@@ -123,6 +145,7 @@ class LiveSim:
             self.loop.call_soon_threadsafe(self.loop.stop)
             self.thread.join(5)
             self.loop.close()
+        assert not self.loop_errors, f"the sim's loop reported exceptions: {self.loop_errors}"
 
 
 def record_doc_image(name: str, version: str) -> None:
@@ -148,7 +171,7 @@ def client_for(sim: LiveSim) -> httpx.Client:
 
 @pytest.fixture(scope="module")
 def _module_live_sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveSim]:
-    with LiveSim(tmp_path_factory.mktemp("websim")) as s:
+    with LiveSim(tmp_path_factory.mktemp("websim"), loop="default") as s:
         yield s
 
 

@@ -86,6 +86,25 @@ def test_one_mebibyte_over_many_connections_costs_about_a_burst(fresh: LiveSim, 
     assert set(counts) == {served, 429}, counts
 
 
+def test_many_addresses_together_are_bounded_too(fresh: LiveSim) -> None:
+    """Issue 33 item 11: from 64 loopback addresses, 1 MiB of pipelined requests got 20,889 answers and no
+    429 (14.6 s of CPU, 50 times one address). Now all clients together share a bucket of TOTAL_FACTOR
+    bursts: 32 addresses x 99 requests are answered at most that many times, the rest 429."""
+    from pywsg.server.ratelimit import TOTAL_FACTOR
+
+    port = fresh.web.port
+    one = raw_get(port, "/api/world")
+    counts: Counter[int] = Counter()
+    t0 = time.monotonic()
+    for i in range(2, 34):  # 32 addresses, each within its own burst (200) for the first 99
+        counts.update(_statuses(_connection(port, one, PER_CONNECTION, source=f"127.0.0.{i}")))
+        counts.update(_statuses(_connection(port, one, PER_CONNECTION, source=f"127.0.0.{i}")))
+    elapsed = time.monotonic() - t0
+    allowed = REQUEST_BURST * TOTAL_FACTOR + REQUEST_RATE * TOTAL_FACTOR * elapsed + 1
+    assert counts[200] <= allowed, f"{counts[200]} served from 32 addresses, the total allows {allowed:.0f}"
+    assert counts[429] > 0 and set(counts) == {200, 429}, counts
+
+
 def _head(answer: bytes) -> tuple[int, dict[str, str], bytes]:
     head, _, body = answer.partition(b"\r\n\r\n")
     lines = head.decode().split("\r\n")

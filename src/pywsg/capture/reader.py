@@ -93,6 +93,10 @@ def is_jsonl(path: str | Path) -> bool:
     return head.startswith(b"{")
 
 
+MAX_JSON_NESTING = 64
+"""Opening brackets and braces a JSON-lines log line may hold (a frame line has one)."""
+
+
 def jsonl_records(path: str | Path) -> Iterator[tuple[float, str, bytes]]:
     """(time s, ``"tx"``/``"rx"``, frame bytes) of each frame line of a JSON-lines log, in order: each
     line ``{"time": s, "direction": "tx"|"rx", "hex": "AA AA ..."}`` (other keys ignored; lines of
@@ -102,9 +106,14 @@ def jsonl_records(path: str | Path) -> Iterator[tuple[float, str, bytes]]:
     for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
             continue
+        # A frame line nests one level. Python 3.11 raises RecursionError for ~1,000 levels, 3.13 parses
+        # thousands, so a limit of our own gives every version the same answer (and bounded work).
+        if line.count("[") + line.count("{") > MAX_JSON_NESTING:
+            raise ValueError(f"line {n}: not a JSON object (a JSON-lines log has one per line; "
+                             f"this one nests more than {MAX_JSON_NESTING} levels)")
         try:
             obj = json.loads(line)
-        except (ValueError, RecursionError):  # RecursionError: nested ~1,000 deep
+        except (ValueError, RecursionError):  # RecursionError: nested ~1,000 deep (before Python 3.13)
             raise ValueError(f"line {n}: not a JSON object (a JSON-lines log has one per line)") from None
         if not isinstance(obj, dict) or obj.get("direction") not in ("tx", "rx") or not obj.get("hex"):
             continue

@@ -1,4 +1,4 @@
-"""``wsg gsd``: write the device description files (GSDML + bitmap for PROFINET, GSD for PROFIBUS)."""
+"""``wsg gsd``: write the device description files and the manuals' ZIP packages (003 §2.1, §3.1)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,10 @@ import click
 def gsd(ctx: click.Context, out_dir: Path, as_json: bool) -> None:
     """Write the virtual WSG's device description files for an engineering tool.
 
-    The PROFINET GSDML (with its bitmap) and the PROFIBUS GSD, as the real gripper's web interface
-    offers them (002 §2). Install them in TIA Portal with Options -> Manage general station
-    description files, then find the WSG under Other field devices.
+    The two ZIP packages the manual describes (003 §2.1: WEIS5555.gsd, WSG_D/R/S.bmp, install.txt;
+    003 §3.1: the GSDML and its bitmap), then each file on its own. Install them in TIA Portal with
+    Options -> Install general station description file (GSD), then find the WSG under Other field
+    devices.
 
     \b
       wsg gsd --out ./gsd

@@ -27,6 +27,7 @@ _SUBCOMMANDS: dict[str, str] = {
     "proxy": "pywsg.cli.proxy:proxy",
     "replay": "pywsg.cli.replay:replay",
     "gsd": "pywsg.cli.gsd:gsd",
+    "ros": "pywsg.cli.ros:ros",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
 _COMMANDER_MODULE = "pywsg.cli.commands"
@@ -39,7 +40,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "State": ("state", "info", "width", "speed", "force", "gripper-state", "flags", "temp", "limits", "stats",
               "monitor"),
     "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
-    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy", "replay"),
+    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy", "replay",
+              "ros"),
 }
 
 

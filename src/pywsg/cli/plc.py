@@ -83,6 +83,10 @@ async def run_demo(url: str, cycles: int = 3, *, scan: float = 0.002, timeout: f
         echo(f"stuck in {hint}")
     echo(f"done: {cyc.cycles} cycle(s), {cyc.holds} part(s) held, {cyc.no_part} without part, "
          f"{cyc.error_count} error recovery(ies)" + ("" if completed else f" — timed out after {timeout:g} s"))
+    if scheme_of(url) == "profibus":   # the master went offline: say what the slave does now
+        from ..fieldbus.profibus.master import offline_note
+
+        echo(offline_note(url))
     return DemoResult(cyc.cycles, cyc.holds, cyc.no_part, cyc.error_count, injected, completed)
 
 

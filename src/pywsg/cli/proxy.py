@@ -13,6 +13,8 @@ from typing import Any, TextIO
 
 import click
 
+from .runner import FloatRange
+
 
 def _open_jsonl(path: Path) -> TextIO:
     """The --jsonl file, opened for writing (the caller closes it); a path that cannot be written is
@@ -42,7 +44,7 @@ def _open_jsonl(path: Path) -> TextIO:
 @click.option("--control", "control", default=None, metavar="[HOST:]PORT",
               help="Serve the network faults' control API here (0: any free port): "
                    "wsg world --sim http://127.0.0.1:PORT net latency --ms 200 switches them at runtime.")
-@click.option("--udp-idle", type=click.FloatRange(0.1, 86400), default=60.0, show_default=True, metavar="S",
+@click.option("--udp-idle", type=FloatRange(0.1, 86400), default=60.0, show_default=True, metavar="S",
               help="UDP: close a client's upstream socket after S seconds without traffic.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON lines instead of text lines.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing per frame (files only).")
@@ -172,15 +174,16 @@ def _address(text: str, hint: str) -> tuple[str, int]:
 
 def start_fault(net: Any, spec: str) -> None:
     """``--net latency:ms=200,jitter=50`` switched on in ``net`` (a NetFaults); bad ones are usage errors."""
-    from ..server.netfault import NetFaultError
+    from ..server.netfault import NetFaultError, parse_number
 
     kind, _, rest = spec.partition(":")
-    params: dict[str, str] = {}
+    params: dict[str, object] = {}
     for item in filter(None, rest.split(",")):
         key, eq, value = item.partition("=")
         if not eq:
             raise click.BadParameter(f"{spec!r}: parameters are KEY=VALUE, not {item!r}", param_hint="--net")
-        params[key.strip()] = value.strip()
+        key = key.strip()
+        params[key] = value.strip() if key == "on" else parse_number(value.strip())
     try:
         net.set(kind.strip(), params)
     except NetFaultError as exc:

@@ -231,6 +231,17 @@ class NumberArgsCommand(click.Command):
 
 # -- ports -------------------------------------------------------------------------------------
 
+class FloatRange(click.FloatRange):
+    """``click.FloatRange`` that also refuses ``nan`` (every comparison with nan is false, so click's
+    bounds let it through; ``--time-scale nan`` then failed deep inside with a traceback)."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        out = super().convert(value, param, ctx)
+        if out != out:  # nan
+            self.fail(f"{value!r} is not a number", param, ctx)
+        return out
+
+
 class PortType(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
     """A listening port: 1..65535, ``0`` for any free port (the OS picks; the banner prints it), or
     ``off``. One meaning in every command (``wsg sim``, ``wsg demo``), as in the Python API."""

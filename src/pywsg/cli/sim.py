@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from .runner import PORT
+from .runner import PORT, FloatRange
 
 
 class _CanId(click.ParamType):  # type: ignore[type-arg]  # generic only since click 8.2
@@ -60,6 +60,33 @@ def _run(coro: Any, use_uvloop: bool | None) -> Any:
         else:
             return uvloop.run(coro)
     return asyncio.run(coro)
+
+
+def _loopback(host: str) -> bool:
+    from ..web.security import is_loopback_host  # only with the web interface on: pywsg[web] is there
+
+    return is_loopback_host(host)
+
+
+def _web_password(given: str | None, path: Path | None) -> str | None:
+    """The web password from --web-password or the first line of --web-password-file (a mounted secret;
+    the line end is not part of it). 1..256 characters, as the web interface takes it."""
+    if given is not None and path is not None:
+        raise click.UsageError("give --web-password or --web-password-file (WSG_WEB_PASSWORD or "
+                               "WSG_WEB_PASSWORD_FILE), not both")
+    if path is not None:
+        try:
+            lines = path.read_text(encoding="utf-8").splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise click.BadParameter(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}",
+                                     param_hint="--web-password-file") from None
+        given = lines[0] if lines else ""
+        hint = "--web-password-file"
+    else:
+        hint = "--web-password"
+    if given is not None and not 1 <= len(given) <= 256:
+        raise click.BadParameter("the web password must be 1..256 characters", param_hint=hint)
+    return given
 
 
 _BANNER = re.compile(r"gripper (\d+): (\S+)\s+(\S+)(.*)")
@@ -112,10 +139,21 @@ def _json_line(line: str) -> str:
               "machine, a serial device such as a USB RS-485 adapter (/dev/ttyUSB0, 8E1), or off.")
 @click.option("--profibus-address", type=click.IntRange(0, 125), default=None, metavar="0..125",
               help="PROFIBUS station address [default: the stored one (Settings -> Command Interface), else 7].")
-@click.option("--profibus-baudrate", type=int, default=19200, show_default=True, metavar="BIT/S",
-              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600, 19200, 45450); nominal on a pty.")
+@click.option("--profibus-baudrate", default="19200", show_default=True, metavar="BIT/S|auto",
+              help="PROFIBUS baud rate, one WEIS5555.gsd declares (9600 ... 1500000); nominal on a pty. "
+              "auto: detect the master's rate (a serial device only).")
 @click.option("--web-port", type=PORT, default="8080", show_default=True,
               help="Web interface (0: any free port, off: none).")
+@click.option("--web-password", envvar="WSG_WEB_PASSWORD", default=None, metavar="PASSWORD",
+              help="Password of the web interface and the world API (as 'Authorization: Bearer PASSWORD') "
+              "[env WSG_WEB_PASSWORD]. Off loopback without one, a password is made and printed once.")
+@click.option("--web-password-file", envvar="WSG_WEB_PASSWORD_FILE", default=None, metavar="PATH",
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Read the web password from this file, e.g. a mounted secret (its first line) "
+              "[env WSG_WEB_PASSWORD_FILE].")
+@click.option("--require-password", is_flag=True,
+              help="Off loopback, refuse to start without --web-password or --web-password-file instead of "
+              "making one (the container image sets this) [env WSG_SIM_REQUIRE_PASSWORD=1].")
 @click.option("--web-allowed-host", "web_allowed_hosts", multiple=True, metavar="NAME",
               help="A further host name the web interface may be reached by (repeatable). Loopback names and the "
               "bound address are always allowed; any other Host header is refused (DNS rebinding guard).")
@@ -123,19 +161,20 @@ def _json_line(line: str) -> str:
               help="Modbus/TCP masters at a time per gripper; more are refused.")
 @click.option("--max-web-connections", type=click.IntRange(1, 1000), default=64, show_default=True,
               help="Open HTTP/WebSocket connections at a time; more are refused.")
-@click.option("--web-request-rate", type=click.FloatRange(0, 100000), default=20.0, show_default=True,
+@click.option("--web-request-rate", type=FloatRange(0, 100000), default=20.0, show_default=True,
               metavar="PER_S", help="Web requests per second per client address on average (0: no limit); "
               "over it a request is answered 429 Too Many Requests.")
 @click.option("--web-request-burst", type=click.IntRange(1, 1000000), default=200, show_default=True,
               help="Web requests a client address may make at once before --web-request-rate applies.")
-@click.option("--idle-timeout", type=click.FloatRange(0, 86400), default=60.0, show_default=True,
+@click.option("--idle-timeout", type=FloatRange(0, 86400), default=60.0, show_default=True,
               help="Close a Modbus/TCP or web connection after this many seconds without data either way "
                    "(0: never). A polling master is never idle.")
 @click.option("--settings", "settings_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Settings file (JSON): loaded at start if it exists, saved on exit.")
+              envvar="WSG_SIM_SETTINGS",
+              help="Settings file (JSON): loaded at start if it exists, saved on exit [env WSG_SIM_SETTINGS].")
 @click.option("--count", type=click.IntRange(1, 10000), default=1, show_default=True,
               help="Run N independent grippers on consecutive ports.")
-@click.option("--time-scale", "time_scale", type=click.FloatRange(min=0, min_open=True, max=1e6), default=1.0,
+@click.option("--time-scale", "time_scale", type=FloatRange(min=0, min_open=True, max=1e6), default=1.0,
               show_default=True, metavar="K",
               help="Run the grippers' time K times faster than real time: motion, homing, heat, auto-update "
               "periods and scenarios (the network and clients' timeouts are not scaled).")
@@ -149,7 +188,8 @@ def _json_line(line: str) -> str:
 @click.option("--block", "block_width", type=float, default=None, metavar="WIDTH",
               help="Start with a rigid obstacle in the fingers' way at WIDTH mm.")
 @click.option("--scenario", "scenario_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              default=None, help="Run a scenario (TOML timeline of world events, see docs/testing.md).")
+              default=None, envvar="WSG_SIM_SCENARIO",
+              help="Run a scenario (TOML timeline of world events, see docs/testing.md) [env WSG_SIM_SCENARIO].")
 @click.option("-v", "--verbose", count=True, help="Log every command (-v) and more (-vv).")
 @click.option("--json", "as_json", is_flag=True,
               help='One JSON object per line: {"event": "interface", "gripper": 0, "kind": "tcp", "url": ...}, '
@@ -175,8 +215,11 @@ def sim(
     profinet_ip: str | None,
     profibus_line: str,
     profibus_address: int | None,
-    profibus_baudrate: int,
+    profibus_baudrate: str,
     web_port: int | None,
+    web_password: str | None,
+    web_password_file: Path | None,
+    require_password: bool,
     web_allowed_hosts: tuple[str, ...],
     max_modbus_connections: int,
     max_web_connections: int,
@@ -198,6 +241,9 @@ def sim(
 
     Prints one line per interface with its address; stops on Ctrl-C or SIGTERM (settings saved,
     sockets closed). With --count N, gripper i listens on each given port + i.
+
+    Every option can also be set by an environment variable WSG_SIM_<OPTION> (--time-scale:
+    WSG_SIM_TIME_SCALE); the container image is configured this way (docs/container.md).
     """
     if profinet_name is not None:
         from ..fieldbus.profinet.station import name_error
@@ -216,9 +262,16 @@ def sim(
         from ..fieldbus.profibus.line import check_baudrate
 
         try:
-            check_baudrate(profibus_baudrate)
+            if profibus_baudrate != "auto" and not profibus_baudrate.isdigit():
+                raise ValueError(f"{profibus_baudrate!r} is neither a rate in bit/s nor auto")
+            rate = None if profibus_baudrate == "auto" else int(profibus_baudrate)
+            check_baudrate(rate)
+            if rate is None and profibus == "pty":
+                raise ValueError("auto needs a serial device: a pty has no bit timing")
         except ValueError as exc:
             raise click.BadParameter(str(exc), param_hint="--profibus-baudrate") from None
+    else:
+        rate = 19200
 
     parent_verbose = int((ctx.obj or {}).get("verbose", 0)) if isinstance(ctx.obj, dict) else 0
     level = max(verbose, parent_verbose)
@@ -239,6 +292,17 @@ def sim(
             click.echo("web interface not available (pip install 'pywsg[web]'); running without it", err=True)
             web = None
 
+    password = _web_password(web_password, web_password_file)
+    if web is not None and password is None and require_password and not _loopback(host):
+        raise click.ClickException(  # one line, no usage text: it ends a container's log
+            f"the web interface and world API on {host} need a password: set WSG_WEB_PASSWORD, or mount a "
+            "secret file and set WSG_WEB_PASSWORD_FILE to its path (or --web-port off, or --host 127.0.0.1)")
+    web_options: dict[str, Any] = {"request_rate": web_request_rate or None, "request_burst": web_request_burst}
+    if web_allowed_hosts:
+        web_options["allowed_hosts"] = web_allowed_hosts
+    if password is not None:
+        web_options["password"] = password
+
     options = SimOptions(
         model=model,
         host=host,
@@ -258,15 +322,14 @@ def sim(
         profinet_ip=profinet_ip,
         profibus=profibus,
         profibus_address=profibus_address,
-        profibus_baudrate=profibus_baudrate,
+        profibus_baudrate=rate,
         web_port=web,
         settings=settings_file,
         count=count,
         clock=_scaled_clock(time_scale),
         limits=Limits(modbus_connections=max_modbus_connections, web_connections=max_web_connections,
                       idle_timeout=idle_timeout),
-        web_options={**({"allowed_hosts": web_allowed_hosts} if web_allowed_hosts else {}),
-                     "request_rate": web_request_rate or None, "request_burst": web_request_burst},
+        web_options=web_options,
     )
 
     as_json = as_json or bool((ctx.obj or {}).get("json")) if isinstance(ctx.obj, dict) else as_json

@@ -70,20 +70,23 @@ class Refuse(asyncio.Protocol):
 _TCP_INFO = getattr(socket, "TCP_INFO", None)
 
 
-def _since_sent(transport: Any) -> float | None:
-    """Seconds since data last left this socket (Linux ``TCP_INFO`` ``tcpi_last_data_sent``), None
-    where unknown: the server's own pushes (WebSocket updates) count as activity too."""
+def _since_data(transport: Any) -> float | None:
+    """Seconds since data last left or reached this socket (Linux ``TCP_INFO``
+    ``tcpi_last_data_sent`` / ``tcpi_last_data_recv``), None where unknown: the server's own pushes
+    (WebSocket updates) count as activity, and so do reads after a WebSocket upgrade, which go to
+    uvicorn's WebSocket protocol and not to :meth:`IdleWatch.touch`."""
     sock = transport.get_extra_info("socket")
     if _TCP_INFO is None or sock is None:
         return None
     try:
         info = sock.getsockopt(socket.IPPROTO_TCP, _TCP_INFO, 104)
-    except OSError:
+    except (OSError, ValueError):  # closed: uvloop's pseudo-socket raises ValueError (fd -1)
         return None
-    if len(info) < 48:
+    if len(info) < 56:
         return None
-    (sent_ms,) = struct.unpack_from("=I", info, 44)  # after 8 bytes of u8 fields and 9 u32s
-    return float(sent_ms) / 1000.0
+    # after 8 bytes of u8 fields and 9 u32s: last_data_sent, last_ack_sent, last_data_recv (ms)
+    sent_ms, _, recv_ms = struct.unpack_from("=III", info, 44)
+    return float(min(sent_ms, recv_ms)) / 1000.0
 
 
 class IdleWatch:
@@ -108,8 +111,13 @@ class IdleWatch:
 
     def _check(self) -> None:
         assert self.timeout
+        if self.transport.is_closing():
+            # closed without our connection_lost: after a WebSocket upgrade uvicorn hands the transport
+            # to its WebSocket protocol, which gets connection_lost instead. Nothing left to watch.
+            self._timer = None
+            return
         idle = self.loop.time() - self.last
-        sent = _since_sent(self.transport)
+        sent = _since_data(self.transport)
         if sent is not None:
             idle = min(idle, sent)
         if idle < self.timeout:

@@ -31,11 +31,13 @@ scaled gripper clock does not slow down or speed up the wire. Random choices com
 from __future__ import annotations
 
 import asyncio
+import collections
 import math
 import random
+import re
 import weakref
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 __all__ = ["KINDS", "NetFaultError", "NetFaults", "Shaper", "net_faults"]
@@ -77,17 +79,37 @@ class _Settings:
     garble: float = 0.0
 
 
+def _show(value: Any) -> str:
+    """``repr`` cut short: a refused value may be a 400-digit number."""
+    text = repr(value) if not isinstance(value, int) or value.bit_length() < 64 else "a huge integer"
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _num(params: Mapping[str, Any], name: str, default: float, lo: float = 0.0, hi: float = math.inf) -> float:
+    """A JSON number within ``lo..hi``. Strings are refused, as by every world route (``"1_0"`` is not
+    10): the command line's ``--net`` turns its text into numbers first (:func:`parse_number`)."""
     value = params.get(name, default)
-    if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise NetFaultError(name, f"must be a number, not {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise NetFaultError(name, f"must be a number, not {_show(value)}")
     try:
         out = float(value)
-    except ValueError:
-        raise NetFaultError(name, f"must be a number, not {value!r}") from None
+    except OverflowError:  # an integer beyond any float
+        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {_show(value)}") from None
     if not (math.isfinite(out) and lo <= out <= hi):
-        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {value!r}")
+        raise NetFaultError(name, f"must be within {lo:g}..{hi:g}, not {_show(value)}")
     return out
+
+
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def parse_number(text: str) -> float | int | str:
+    """Command-line text as the number it spells (``200``, ``0.5``, ``1e3``); anything else (``1_0``,
+    ``" 5 "``, ``nan``) is returned as it is, for :meth:`NetFaults.set` to refuse with the field named."""
+    if _NUMBER.fullmatch(text):
+        digits = text.lstrip("+-")
+        return int(text) if digits.isdigit() and len(digits) < 20 else float(text)  # (huge: inf, refused)
+    return text
 
 
 def on_param(params: Mapping[str, Any], error: Callable[[str, str], Exception] = NetFaultError) -> bool:
@@ -140,11 +162,15 @@ class NetFaults:
         if unknown:
             raise NetFaultError(sorted(unknown)[0], f"not a parameter of {kind} ({', '.join(_PARAMS[kind])})")
         on = on_param(p)
-        if "seed" in p:
-            self.rng.seed(int(_num(p, "seed", 0, 0, 2**63)))
-        s = self.s
+        seed = int(_num(p, "seed", 0, 0, 2**63)) if "seed" in p else None
+        s = replace(self.s)  # all parameters checked before any is applied: a refusal changes nothing
         text = self._switch(kind, on, p, s)
-        self.active = any(getattr(s, f.name) not in (0, 0.0, None, False) for f in fields(s))
+        self.s = s
+        if seed is not None:
+            self.rng.seed(seed)
+        # reset is on at any timeout, 0 included ("now and at every connect"): None is its off
+        self.active = s.reset is not None or any(
+            getattr(s, f.name) not in (0, 0.0, None, False) for f in fields(s) if f.name != "reset")
         if on and kind in ("reset", "silent"):
             self._tell(kind)
         return text
@@ -243,22 +269,38 @@ class NetFaults:
         return bytes(out)
 
 
+Write = Callable[[bytes], object]
+
+
 class Shaper:
     """Sends one connection's (or datagram client's) outgoing bytes through the faults.
 
     ``write(data)`` puts bytes on the wire. :meth:`send` writes at once when nothing is on and
-    nothing waits; otherwise it schedules pieces on the loop at their due time (latency, jitter,
-    bandwidth, slicer), in order when ``ordered`` (a byte stream); datagrams (``ordered=False``) may
-    overtake each other with jitter, be dropped or held back (reorder).
+    nothing waits; otherwise the pieces wait for their due time (latency, jitter, bandwidth,
+    slicer). A byte stream (``ordered``) keeps them in **one FIFO queue** behind one timer, so
+    they go out in the order they were sent whatever faults are switched on or off meanwhile
+    (separate timers at equal deadlines are not kept in order by the loop's heap). Datagrams
+    (``ordered=False``) each get a timer of their own: they may overtake each other with jitter,
+    be dropped or held back (reorder).
+
+    ``hold``: a byte stream that must lose nothing (``wsg proxy``: its writes are arbitrary reads,
+    not whole frames) passes a callback; ``hold(True)`` is called while :data:`MAX_PENDING` bytes
+    wait (stop reading the source), ``hold(False)`` once half of them are out. Without it, a write
+    that would exceed :data:`MAX_PENDING` is dropped whole (the sim writes whole frames).
     """
 
-    def __init__(self, faults: NetFaults, write: Callable[[bytes], object], ordered: bool = True) -> None:
+    def __init__(self, faults: NetFaults, write: Write, ordered: bool = True,
+                 hold: Callable[[bool], None] | None = None) -> None:
         self.faults = faults
         self.write = write
         self.ordered = ordered
+        self.hold = hold
+        self._held_source = False  # hold(True) was called
         self._free = 0.0  # loop time at which the last scheduled piece is out
-        self._pending: set[asyncio.TimerHandle] = set()
-        self._held: bytes | None = None
+        self._queue: collections.deque[tuple[float, bytes, Write]] = collections.deque()
+        self._timer: asyncio.TimerHandle | None = None  # the queue head's
+        self._pending: set[asyncio.TimerHandle] = set()  # datagrams' own timers
+        self._held: tuple[bytes, Write] | None = None
         self._held_timer: asyncio.TimerHandle | None = None
         self._last = 0.0  # loop time of the last datagram scheduled (a held one goes after it)
         self._pending_bytes = 0
@@ -266,12 +308,15 @@ class Shaper:
     @property
     def busy(self) -> bool:
         """Bytes wait to go out (a fault was on a moment ago): later ones must queue behind them."""
-        return bool(self._pending) or self._held is not None
+        return bool(self._queue) or bool(self._pending) or self._held is not None
 
-    def send(self, data: bytes) -> None:
+    def send(self, data: bytes, write: Write | None = None) -> None:
+        """Send ``data`` through the faults; ``write`` (default the shaper's) puts it on the wire, so
+        a datagram goes to the address that asked whenever it is sent."""
         f = self.faults
-        if not f.active and not self._pending and self._held is None:
-            self.write(data)
+        out = write or self.write
+        if not f.active and not self._queue and not self._pending and self._held is None:  # (busy, inlined)
+            out(data)
             return
         s = f.s
         if s.silent:
@@ -281,9 +326,9 @@ class Shaper:
             if f.lose():
                 return
             if s.reorder and self._held is None and f.rng.random() < s.reorder:
-                self._hold(data)
+                self._hold(data, out)
                 return
-        if self._pending_bytes + len(data) > MAX_PENDING:
+        if self._pending_bytes + len(data) > MAX_PENDING and self.hold is None:
             f.counts["overflow"] += 1  # whole writes only: a frame is never cut
             return
         data = f.garble_bytes(data)
@@ -299,16 +344,29 @@ class Shaper:
                 t += s.slice_delay
             if s.rate:  # the link carries one piece at a time, datagrams too
                 t = max(t, self._free) + len(piece) / s.rate
-            self._at(loop, t, piece)
+            self._at(loop, t, piece, out)
             if self.ordered or s.rate:
                 self._free = t
         self._last = t
         if self._held is not None:
             self._release_held()
+        if self.hold is not None and not self._held_source and self._pending_bytes >= MAX_PENDING:
+            self._held_source = True
+            self.hold(True)
 
-    def _at(self, loop: asyncio.AbstractEventLoop, t: float, piece: bytes) -> None:
+    def _at(self, loop: asyncio.AbstractEventLoop, t: float, piece: bytes, write: Write) -> None:
+        if self.ordered:
+            q = self._queue
+            if not q and t <= loop.time():
+                write(piece)
+                return
+            q.append((t, piece, write))
+            self._pending_bytes += len(piece)
+            if self._timer is None:
+                self._timer = loop.call_at(q[0][0], self._drain)
+            return
         if t <= loop.time() and not self._pending:
-            self.write(piece)
+            write(piece)
             return
         handle: asyncio.TimerHandle | None = None
 
@@ -316,31 +374,52 @@ class Shaper:
             assert handle is not None
             self._pending.discard(handle)
             self._pending_bytes -= len(piece)
-            self.write(piece)
+            write(piece)
 
         handle = loop.call_at(t, fire)
         self._pending.add(handle)
         self._pending_bytes += len(piece)
 
-    def _hold(self, data: bytes) -> None:
-        self._held = data
+    def _drain(self) -> None:
+        """Write the queue's pieces that are due, in order; wait for the next one."""
+        self._timer = None
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        q = self._queue
+        while q and q[0][0] <= now:  # (a write may close the shaper: close() empties q)
+            _, piece, write = q.popleft()
+            self._pending_bytes -= len(piece)
+            write(piece)
+        if q and self._timer is None:
+            self._timer = loop.call_at(q[0][0], self._drain)
+        if self._held_source and self._pending_bytes <= MAX_PENDING // 2 and self.hold is not None:
+            self._held_source = False
+            self.hold(False)
+
+    def _hold(self, data: bytes, write: Write) -> None:
+        self._held = (data, write)
         self.faults.counts["reordered"] += 1
         self._held_timer = asyncio.get_running_loop().call_later(REORDER_HOLD, self._release_held)
 
     def _release_held(self) -> None:
-        data, self._held = self._held, None
+        held, self._held = self._held, None
         if self._held_timer is not None:
             self._held_timer.cancel()
             self._held_timer = None
-        if data is not None:
+        if held is not None:
             loop = asyncio.get_running_loop()
-            self._at(loop, max(loop.time(), self._free, self._last + 1e-6), self.faults.garble_bytes(data))
+            data, write = held
+            self._at(loop, max(loop.time(), self._free, self._last + 1e-6), self.faults.garble_bytes(data), write)
 
     def close(self) -> None:
         """Forget what waits (the connection is gone)."""
         for h in self._pending:
             h.cancel()
         self._pending.clear()
+        self._queue.clear()
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
         self._pending_bytes = 0
         if self._held_timer is not None:
             self._held_timer.cancel()

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from .can_bus import CanServer
+from .conncap import FD_RESERVE, fd_limit, open_fds
 from .device_api import GripperLike
 from .limits import DEFAULT_LIMITS, Limits
 from .scheduler import DeviceRunner, Scheduler, get_scheduler
@@ -80,8 +81,8 @@ class SimOptions:
     """PROFIBUS DP slave: ``"pty"`` for a new pseudo-terminal, a serial device path, None for none."""
     profibus_address: int | None = None
     """Station address 0..125; None: the stored one (Settings → Command Interface), else 7."""
-    profibus_baudrate: int = 19200
-    """Baud rate in bit/s (one the GSD declares; nominal on a pty)."""
+    profibus_baudrate: int | None = 19200
+    """Baud rate in bit/s (one the GSD declares; nominal on a pty); None: detected (a real port)."""
     web_port: int | None = None
     settings: Path | None = None
     """Settings file: loaded at start when it exists, saved at a clean stop."""
@@ -119,6 +120,9 @@ def bind_error(what: str, host: str, port: int, option: str, exc: OSError) -> Si
     if exc.errno == errno.EADDRINUSE:
         text += (f" (another program, perhaps another `wsg sim`, has port {port}): choose another with "
                  f"{option} PORT, or {option} 0 for any free port")
+    elif exc.errno == errno.EACCES and 0 < port < 1024:
+        text += (" (ports below 1024 need root or the sysctl net.ipv4.ip_unprivileged_port_start; in a "
+                 "container: --sysctl net.ipv4.ip_unprivileged_port_start=0, see docs/container.md)")
     return SimError(text)
 
 
@@ -319,18 +323,59 @@ class SimServer:
         factory = opts.factory or _default_factory
         settings = self._load_settings()
         self._started = True
+        fds = [open_fds()]  # descriptors open before any gripper, then after each of the first two
         try:
             for i in range(opts.count):
                 gripper = factory(opts.model, settings, opts.clock)
                 runner = DeviceRunner(gripper, self.scheduler)
                 sg = SimGripper(i, gripper, runner, opts.host)
                 self.grippers.append(sg)
-                await self._start_one(sg, i)
+                try:
+                    await self._start_one(sg, i)
+                except (OSError, SimError) as exc:
+                    cause = exc if isinstance(exc, OSError) else exc.__cause__
+                    if isinstance(cause, OSError) and cause.errno in (errno.EMFILE, errno.ENFILE):
+                        raise self._fd_error(fds, i) from exc
+                    raise
                 runner.start()
+                if i < 2:
+                    fds.append(open_fds())
+                if i == 1:
+                    self._check_fds(fds)
         except BaseException:
             await self.close(save=False)
             raise
         return self
+
+    def _per_gripper(self, fds: list[int | None]) -> int:
+        """Descriptors one gripper holds: what the second one opened (the first also opens one-offs)."""
+        if len(fds) >= 3 and fds[1] is not None and fds[2] is not None:
+            return max(1, fds[2] - fds[1])
+        return 6  # TCP, UDP, Modbus/TCP, web, a pty's two ends
+
+    def _fds_text(self, fds: list[int | None]) -> tuple[str, int] | None:
+        limit, base = fd_limit(), fds[0]
+        if limit is None or base is None:
+            return None
+        per = self._per_gripper(fds)
+        count = self.options.count
+        fits = max(0, (limit - FD_RESERVE - base) // per)
+        needed = base + per * count + FD_RESERVE
+        return (f"--count {count} needs about {needed} file descriptors ({per} per gripper, {FD_RESERVE} kept "
+                f"free for connections) but this process may open {limit} (ulimit -n): --count {fits} fits, "
+                f"or raise the limit (ulimit -n {needed}) or turn interfaces off (--serial off, --web-port off)",
+                fits)
+
+    def _check_fds(self, fds: list[int | None]) -> None:
+        """Refuse a --count the descriptor limit cannot hold before binding hundreds of sockets."""
+        found = self._fds_text(fds)
+        if found is not None and found[1] < self.options.count:
+            raise SimError(found[0])
+
+    def _fd_error(self, fds: list[int | None], i: int) -> SimError:
+        found = self._fds_text(fds)
+        text = found[0] if found is not None else "raise the limit (ulimit -n) or start fewer grippers"
+        return SimError(f"gripper {i}: out of file descriptors: {text}")
 
     async def _start_one(self, sg: SimGripper, i: int) -> None:
         opts = self.options
@@ -413,16 +458,16 @@ class SimServer:
 
         opts = self.options
         store = AddressStore.beside(opts.settings)
-        address = opts.profibus_address
-        if address is None:
-            address = store.load() + i
+        stored = store.load() + i     # also reads the stored No_Add_Chg
+        address = stored if opts.profibus_address is None else opts.profibus_address
         line = opts.profibus or "pty"
         path = line if line == "pty" or opts.count == 1 else f"{line}{i}"
         from ..fieldbus.profibus.line import ProfibusAdapter
 
         try:
             sg.profibus = await ProfibusAdapter(sg.fieldbus_controller(), path, address, opts.profibus_baudrate,
-                                                on_address_change=store.save if i == 0 else None).start()
+                                                on_address_change=store.save if i == 0 else None,
+                                                address_locked=store.locked and i == 0).start()
         except ValueError as exc:
             raise SimError(f"gripper {i}: PROFIBUS: {exc}") from None
         except OSError as exc:   # pyserial nests the OS error in its own message: name the cause once
@@ -444,22 +489,27 @@ class SimServer:
                 "--udp-reply-port 0 (answer the sender's port) or a port outside %d..%d",
                 reply, reply - opts.udp_port, opts.udp_port, opts.udp_port + opts.count - 1)
 
+    @staticmethod
+    async def _close_one(sg: SimGripper) -> None:
+        sg.runner.stop()
+        for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
+            if part is None:
+                continue
+            with contextlib.suppress(Exception):
+                await part.close()
+        if sg.controller is not None:   # after its buses: none feeds it any more
+            with contextlib.suppress(Exception):
+                sg.controller.close()
+            sg.controller = None
+
     async def close(self, save: bool = True) -> None:
         """Stop every interface (sockets closed, sessions closed) and save the settings file."""
         if not self._started:
             return
         self._started = False
-        for sg in self.grippers:
-            sg.runner.stop()
-            for part in (sg.web, sg.profinet, sg.profibus, sg.modbus, sg.can, sg.serial, sg.udp, sg.tcp):
-                if part is None:
-                    continue
-                with contextlib.suppress(Exception):
-                    await part.close()
-            if sg.controller is not None:   # after its buses: none feeds it any more
-                with contextlib.suppress(Exception):
-                    sg.controller.close()
-                sg.controller = None
+        # every gripper at once: a web interface takes ~0.2 s to stop (uvicorn looks at its exit flag
+        # every 0.1 s), so one after the other 200 grippers took 36 s, past a supervisor's stop timeout
+        await asyncio.gather(*(self._close_one(sg) for sg in self.grippers))
         path = self.options.settings
         if save and path is not None and self.grippers:
             settings = getattr(self.grippers[0].gripper, "settings", None)

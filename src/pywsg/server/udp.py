@@ -24,6 +24,7 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import logging
+from collections.abc import Callable
 from typing import Any, cast
 
 from ..protocol import CATALOG, PREAMBLE, Frame, Status
@@ -104,6 +105,16 @@ class UdpServer(asyncio.DatagramProtocol):
         if self.transport is not None and self.client is not None:
             self.transport.sendto(data, self.client)
 
+    def _writer(self, addr: Address) -> Callable[[bytes], None]:
+        """A datagram delayed by the network faults goes to ``addr``, the client that asked, not to
+        whoever sent last by the time it leaves."""
+
+        def write(data: bytes) -> None:
+            if self.transport is not None:
+                self.transport.sendto(data, addr)
+
+        return write
+
     async def start(self) -> UdpServer:
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_datagram_endpoint(
@@ -162,8 +173,10 @@ class UdpServer(asyncio.DatagramProtocol):
         if t is None:
             return
         if net.active or self.shaper.busy:
-            for frame in replies:
-                self.shaper.send(frame.encode())
+            if replies and self.client is not None:
+                write = self._writer(self.client)
+                for frame in replies:
+                    self.shaper.send(frame.encode(), write)
             return
         for frame in replies:
             t.sendto(frame.encode(), self.client)
@@ -183,7 +196,7 @@ class UdpServer(asyncio.DatagramProtocol):
             self.dropped += 1
             return
         if self.net.active or self.shaper.busy:
-            self.shaper.send(frame.encode())
+            self.shaper.send(frame.encode(), self._writer(self.client))
             return
         t.sendto(frame.encode(), self.client)
 

@@ -30,7 +30,7 @@ from ..device import ManualClock, ScaledClock, Settings, VirtualGripper
 from ..server.sim import SimGripper, SimOptions, SimServer
 from .replay import ReplayReport, replay
 from .scenario import Scenario, ScenarioRunner, drive_realtime, tap
-from .world import apply, world_state
+from .world import WorldActions, apply, world_state
 
 __all__ = ["CellGripper", "LoopThread", "SimThread", "World", "setup_world"]
 
@@ -70,7 +70,7 @@ class LoopThread:
         self.loop.close()
 
 
-class World:
+class World(WorldActions):
     """The world around one gripper of a :class:`SimThread`: parts, obstacles, faults, heat, time.
 
     Every method runs on the server's loop and returns once the device has taken the change.
@@ -84,53 +84,6 @@ class World:
     def _apply(self, action: str, **params: Any) -> str:
         g = self._host.sim.grippers[self._index].gripper
         return self._host.call(lambda: apply(g, action, params))
-
-    def place_part(self, width: float, stiffness: float | None = None, inside: bool = False) -> str:
-        """Put a part of ``width`` mm in the gripper: between the fingers, gripped from outside (the
-        default), or with ``inside=True`` a ring around them, gripped from inside. ``stiffness`` N/mm
-        (default rigid: a held part reads its own width)."""
-        return self._apply("part", width=width, stiffness=stiffness, inside=inside)
-
-    def remove_part(self) -> str:
-        """Take the part away (while HOLDING: the part is lost)."""
-        return self._apply("remove_part")
-
-    def block(self, width: float) -> str:
-        """Put a rigid obstacle in the fingers' way at ``width`` mm."""
-        return self._apply("block", width=width)
-
-    def unblock(self) -> str:
-        return self._apply("unblock")
-
-    def fault(self, kind: str, on: bool = True, finger: int | None = None, timeout: float | None = None) -> str:
-        """Switch a fault on or off: ``kind`` power, current, finger (over-current, ``finger`` 1 or 2),
-        ack (acknowledge refused), watchdog (FAST STOP ``timeout`` s without a request) or unplugged
-        (``finger`` 1 or 2); what each reports: docs/testing.md, "World faults"."""
-        params: dict[str, Any] = {"kind": kind, "on": on}
-        if finger is not None:
-            params["finger"] = finger
-        if timeout is not None:
-            params["timeout"] = timeout
-        return self._apply("fault", **params)
-
-    def slip(self, duration: float = 1.0) -> str:
-        """The part slides out of the fingers; ``duration`` s (gripper clock) later it is gone (PART LOST)."""
-        return self._apply("slip", duration=duration)
-
-    def disconnect(self) -> str:
-        """The gripper closes its TCP connections (FIN); the sessions end without 07h: FAST STOP."""
-        return self._apply("disconnect")
-
-    def net(self, kind: str, on: bool = True, **params: Any) -> str:
-        """Switch a network fault on (with its parameters) or off, at once, on every interface of this
-        gripper: ``latency`` (ms, jitter ms), ``bandwidth`` (rate bytes/s), ``slicer`` (size bytes, gap
-        ms), ``reset`` (timeout s), ``silent`` (timeout s), ``drop`` / ``reorder`` / ``garble`` (p);
-        ``kind="clear"``: all off. See :mod:`pywsg.server.netfault`."""
-        return self._apply("net", kind=kind, on=on, **params)
-
-    def heat(self, delta_c: float) -> str:
-        """Raise (or lower) the temperature by ``delta_c`` °C at once."""
-        return self._apply("heat", delta_c=delta_c)
 
     def state(self) -> dict[str, Any]:
         """Gripper state, width, force, temperature, part, obstacle and faults (see ``world_state``)."""
@@ -328,7 +281,8 @@ class SimThread:
         if self._loop_thread is None:
             self._loop_thread = LoopThread()
         try:
-            self.run(self._start())
+            # generous: the first start in a process imports the web stack (seconds on a loaded machine)
+            self.run(self._start(), timeout=60)
         except BaseException:
             if self._own_loop:
                 self._loop_thread.close()

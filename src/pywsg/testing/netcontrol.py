@@ -20,7 +20,9 @@ change runs on the proxy's loop (the faults are only touched there).
 from __future__ import annotations
 
 import asyncio
+import ipaddress
 import json
+import socket
 import threading
 from collections.abc import Callable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -31,7 +33,22 @@ from ..server.netfault import NetFaultError, NetFaults
 __all__ = ["ControlServer"]
 
 MAX_BODY = 4096
-_LOOPBACK = ("127.0.0.1", "localhost", "::1")
+def _is_loopback(host: str) -> bool:
+    """``localhost``, any of 127.0.0.0/8 or ::1 (``127.0.0.9`` too: a second proxy's control port)."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+
+
+class _Server6(_Server):
+    address_family = socket.AF_INET6
 
 
 def _host_name(header: str) -> str:
@@ -45,20 +62,21 @@ class ControlServer:
 
     def __init__(self, net: NetFaults, loop: asyncio.AbstractEventLoop, host: str = "127.0.0.1",
                  port: int = 0) -> None:
-        if host not in _LOOPBACK and not host.startswith("127."):
+        host = host.strip("[]")
+        if not _is_loopback(host):
             raise ValueError(f"{host}: the control API has no password, so it listens on loopback only "
                              "(127.0.0.1, ::1, localhost)")
         self.net = net
         self.loop = loop
-        self.httpd = ThreadingHTTPServer((host, port), self._handler())
-        self.httpd.daemon_threads = True
+        server = _Server6 if ":" in host else _Server  # ::1: an IPv6 socket (the default is IPv4 only)
+        self.httpd = server((host, port), self._handler())
         self.port = int(self.httpd.server_address[1])
         self.host = host
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="pywsg-proxy-control", daemon=True)
 
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}"
+        return f"http://[{self.host}]:{self.port}" if ":" in self.host else f"http://{self.host}:{self.port}"
 
     def start(self) -> ControlServer:
         self._thread.start()
@@ -100,7 +118,7 @@ class ControlServer:
                 if self.headers.get("Origin") is not None or self.headers.get("Sec-Fetch-Site", "none") != "none":
                     self._reply(403, {"detail": "the control API is for programs, not browser pages"})
                     return True
-                if _host_name(self.headers.get("Host", "")) not in _LOOPBACK:
+                if not _is_loopback(_host_name(self.headers.get("Host", ""))):
                     self._reply(403, {"detail": "Host header must name a loopback address"})
                     return True
                 if self.path.rstrip("/") not in ("/api/world", "/api/world/net"):
@@ -127,11 +145,12 @@ class ControlServer:
                     return
                 try:
                     params = json.loads(self.rfile.read(int(length)) or b"{}")
-                except (ValueError, UnicodeDecodeError):
+                except (ValueError, UnicodeDecodeError, RecursionError):  # RecursionError: nesting 1,000+ deep
                     self._reply(422, {"detail": "invalid input: body is not JSON", "errors": {"_": "not JSON"}})
                     return
                 if not isinstance(params, dict):
-                    self._reply(422, {"detail": "invalid input: body must be a JSON object"})
+                    self._reply(422, {"detail": "invalid input: body must be a JSON object",
+                                      "errors": {"_": "not an object"}})
                     return
                 kind = str(params.pop("kind", ""))
 

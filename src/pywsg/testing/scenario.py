@@ -32,14 +32,16 @@ from __future__ import annotations
 
 import heapq
 import math
+import re
 import sys
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..protocol import CATALOG, GripperState
-from .world import ACTIONS, WorldError, apply
+from .world import ACTIONS, WorldError, apply, check_parameters
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -122,7 +124,12 @@ class Scenario:
             raise ScenarioError(f"{path}: not valid TOML: {_short(str(exc), 200)}") from None
         except RecursionError:
             raise ScenarioError(f"{path}: not valid TOML: nested too deeply") from None
-        return cls.parse(data, str(path))
+        try:
+            return cls.parse(data, str(path))
+        except _UnknownParameter as exc:
+            line = _line_of(Path(path).read_text(encoding="utf-8"), exc.event, exc.key)
+            at = f"{path}:{line}" if line else str(path)
+            raise ScenarioError(f"{at}: event {exc.event + 1}: {exc.reason}") from None
 
     @classmethod
     def parse(cls, data: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
@@ -132,7 +139,29 @@ class Scenario:
         unknown = set(data) - {"event", "description"}
         if unknown:
             raise ScenarioError(f"{source}: unknown top-level key(s): {', '.join(sorted(unknown))}")
-        return cls(tuple(_event(e, f"{source}: event {i + 1}") for i, e in enumerate(raw)), source)
+        return cls(tuple(_event(e, f"{source}: event {i + 1}", i) for i, e in enumerate(raw)), source)
+
+
+class _UnknownParameter(ScenarioError):
+    """An event names a key its action does not take; :meth:`Scenario.load` adds the file's line."""
+
+    def __init__(self, where: str, event: int, key: str, reason: str) -> None:
+        super().__init__(f"{where}: {reason}")
+        self.event, self.key, self.reason = event, key, reason
+
+
+def _line_of(text: str, event: int, key: str) -> int | None:
+    """The 1-based line of ``key = ...`` in the ``event``-th (0-based) ``[[event]]`` table, if written so."""
+    seen = -1
+    key_line = re.compile(rf"^\s*(?:{re.escape(key)}|\"{re.escape(key)}\"|'{re.escape(key)}')\s*=")
+    for n, line in enumerate(text.splitlines(), 1):
+        if re.match(r"^\s*\[\[\s*event\s*\]\]", line):
+            seen += 1
+        elif seen == event and key_line.match(line):
+            return n
+        elif seen > event:
+            break
+    return None
 
 
 def _short(text: str, limit: int = 40) -> str:
@@ -158,7 +187,7 @@ def _finite(v: Any) -> bool:
         return False
 
 
-def _event(e: Mapping[str, Any], where: str) -> Event:
+def _event(e: Mapping[str, Any], where: str, index: int = 0) -> Event:
     do = e.get("do")
     if not isinstance(do, str) or do not in ACTIONS:
         raise ScenarioError(f"{where}: do: must be one of {', '.join(ACTIONS)}, not {_show(do)}")
@@ -166,6 +195,11 @@ def _event(e: Mapping[str, Any], where: str) -> Event:
     if len(triggers) != 1:
         raise ScenarioError(f"{where}: give exactly one of at / before / after")
     params = {k: v for k, v in e.items() if k not in _TRIGGER_KEYS}
+    try:  # a typo (``widht = 20``) is an error now, not a part placed without its width when the event fires
+        check_parameters(do, params)
+    except WorldError as exc:
+        reason = f"{exc.field}: {exc.reason}; an event's own keys are {', '.join(sorted(_TRIGGER_KEYS))}"
+        raise _UnknownParameter(where, index, exc.field, reason) from None
     for k, v in params.items():  # checked now, so a bad value cannot stop the story when its event fires
         if isinstance(v, int | float) and not isinstance(v, bool) and not _finite(v):
             raise ScenarioError(f"{where}: {k}: must be a finite number, not {_show(v)}")
@@ -201,11 +235,23 @@ def _event(e: Mapping[str, Any], where: str) -> Event:
                  delay=num("delay", 0.0) or 0.0, cycle=cycle, note=e.get("note", ""))
 
 
+LOG_LIMIT = 1000
+"""How many of the latest actions :attr:`ScenarioRunner.log` keeps: a ``before`` event fires on every matching
+request, so a client decides how often; an unbounded log grew 32 -> 58 MB over 60k requests."""
+
+REPORT_BURST = 100
+REPORT_RATE = 20.0
+"""``on_action`` hears at most REPORT_BURST actions at once and REPORT_RATE a second (gripper clock) after that;
+the rest are counted and told in one line when reporting resumes (``wsg sim`` printed 17.6 MB for 60k
+requests before)."""
+
+
 @dataclass
 class ScenarioRunner:
     """Runs a :class:`Scenario` against one gripper, starting at ``start`` (s on its clock).
 
-    ``log`` collects ``(time, what happened)``; ``on_action`` is told the same (``wsg sim`` prints it).
+    ``log`` keeps the latest :data:`LOG_LIMIT` ``(time, what happened)``; ``on_action`` is told the same
+    (``wsg sim`` prints it), at a bounded rate (:data:`REPORT_RATE`), with a count of what it was not told.
     World actions refused by the device (say a width beyond the stroke) are logged, not raised:
     the story goes on.
     """
@@ -216,7 +262,12 @@ class ScenarioRunner:
     on_action: Callable[[float, str], None] | None = None
     on_queue: Callable[[], None] | None = None
     """Called when a timed action was queued (a realtime host re-arms its timer)."""
-    log: list[tuple[float, str]] = field(default_factory=list)
+    log: deque[tuple[float, str]] = field(default_factory=lambda: deque(maxlen=LOG_LIMIT))
+    actions: int = 0
+    """How many actions were carried out in all (the log keeps only the latest)."""
+    _tokens: float = REPORT_BURST
+    _refilled: float | None = None
+    _unreported: int = 0
     _pending: list[tuple[float, int, Event]] = field(default_factory=list)
     _counts: dict[int, int] = field(default_factory=dict)
     _state: GripperState | None = None
@@ -287,9 +338,24 @@ class ScenarioRunner:
         except WorldError as exc:
             text = f"{ev.do} refused: {exc}"
         line = f"{text} ({ev.describe()}{', ' + ev.note if ev.note else ''})"
+        self.actions += 1
         self.log.append((now - self.start, line))
-        if self.on_action is not None:
+        if self.on_action is not None and self._may_report(now):
+            if self._unreported:
+                self.on_action(now - self.start, f"... {self._unreported} more scenario action(s) not shown")
+                self._unreported = 0
             self.on_action(now - self.start, line)
+
+    def _may_report(self, now: float) -> bool:
+        """A token bucket on the gripper's clock: REPORT_BURST at once, REPORT_RATE a second after that."""
+        if self._refilled is not None:
+            self._tokens = min(REPORT_BURST, self._tokens + (now - self._refilled) * REPORT_RATE)
+        self._refilled = now
+        if self._tokens >= 1.0:
+            self._tokens -= 1.0
+            return True
+        self._unreported += 1
+        return False
 
 
 def tap(gripper: Any, runner: ScenarioRunner) -> Callable[[], None]:

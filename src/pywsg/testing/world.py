@@ -16,7 +16,8 @@ from typing import Any
 
 from . import world_faults
 
-__all__ = ["ACTIONS", "FAULT_KINDS", "WorldError", "apply", "world_state"]
+__all__ = ["ACTIONS", "FAULT_KINDS", "HTTP_ROUTES", "PARAMETERS", "WorldActions", "WorldError", "apply",
+           "check_parameters", "world_state"]
 
 FAULT_KINDS = ("power", "current", "finger", "ack", "watchdog", "unplugged")
 """Faults that can be switched on and off (command manual 000 Appendix B flags SF_POWER_FAULT,
@@ -25,6 +26,46 @@ finger: :mod:`pywsg.testing.world_faults`)."""
 
 ACTIONS = ("part", "remove_part", "block", "unblock", "fault", "heat", "slip", "disconnect", "net")
 """Names of the world actions (also the ``do`` key of a scenario event)."""
+
+HTTP_ROUTES = (
+    ("POST", "/part", "part", True),
+    ("DELETE", "/part", "remove_part", False),
+    ("POST", "/block", "block", True),
+    ("DELETE", "/block", "unblock", False),
+    ("POST", "/fault", "fault", True),
+    ("POST", "/heat", "heat", True),
+    ("POST", "/slip", "slip", True),
+    ("POST", "/disconnect", "disconnect", False),
+    ("POST", "/net", "net", True),
+    ("DELETE", "/net", "net_clear", False),
+)
+"""The world actions over HTTP (``/api/world`` + path, :mod:`pywsg.web.world_api`): method, path, action,
+whether the action's parameters travel as a JSON body."""
+
+PARAMETERS: dict[str, frozenset[str]] = {
+    "part": frozenset({"width", "stiffness", "inside"}),
+    "remove_part": frozenset(),
+    "block": frozenset({"width"}),
+    "unblock": frozenset(),
+    "fault": frozenset({"kind", "on", "finger", "timeout"}),
+    "heat": frozenset({"delta_c"}),
+    "slip": frozenset({"duration"}),
+    "disconnect": frozenset(),
+    "net": frozenset(),  # its kind's own parameters: pywsg.server.netfault checks those
+}
+"""The parameters each world action takes: any other key is refused (a typo such as ``widht`` would
+otherwise be ignored, and the part placed with no width or the default one)."""
+
+
+def check_parameters(action: str, params: Mapping[str, Any]) -> None:
+    """Raise :class:`WorldError` naming the first parameter ``action`` does not take."""
+    allowed = PARAMETERS.get(action)
+    if allowed is None or action == "net":
+        return
+    unknown = sorted(set(params) - allowed)
+    if unknown:
+        takes = ", ".join(sorted(allowed)) or "no parameters"
+        raise WorldError(unknown[0], f"not a parameter of {action} (it takes {takes})")
 
 
 class WorldError(ValueError):
@@ -91,6 +132,7 @@ def apply(gripper: Any, action: str, params: Mapping[str, Any] | None = None) ->
     faults = getattr(gripper, "faults", None)
     if faults is None:
         raise WorldError("_", "this gripper has no world to change (not a virtual gripper)")
+    check_parameters(action, p)
     try:
         if action == "part":
             width = _width(gripper, p)
@@ -229,3 +271,61 @@ def _net_state(gripper: Any) -> dict[str, Any]:
     from ..server.netfault import net_faults
 
     return net_faults(gripper).state()
+
+
+class WorldActions:
+    """The world actions as methods, over one ``_apply(action, **params)`` that a front end supplies:
+    in process (:class:`pywsg.testing.World`) or over HTTP (:class:`pywsg.testing.remote.RemoteWorld`).
+
+    Widths in mm, stiffness in N/mm, ``delta_c`` in °C, durations in s. Each returns what was done, in words.
+    """
+
+    def _apply(self, action: str, **params: Any) -> str:
+        raise NotImplementedError
+
+    def place_part(self, width: float, stiffness: float | None = None, inside: bool = False) -> str:
+        """Put a part of ``width`` mm in the gripper: between the fingers, gripped from outside (the
+        default), or with ``inside=True`` a ring around them, gripped from inside. ``stiffness`` N/mm
+        (default rigid: a held part reads its own width)."""
+        return self._apply("part", width=width, stiffness=stiffness, inside=inside)
+
+    def remove_part(self) -> str:
+        """Take the part away (while HOLDING: the part is lost)."""
+        return self._apply("remove_part")
+
+    def block(self, width: float) -> str:
+        """Put a rigid obstacle in the fingers' way at ``width`` mm."""
+        return self._apply("block", width=width)
+
+    def unblock(self) -> str:
+        return self._apply("unblock")
+
+    def fault(self, kind: str, on: bool = True, finger: int | None = None, timeout: float | None = None) -> str:
+        """Switch a fault on or off: ``kind`` power, current, finger (over-current, ``finger`` 1 or 2),
+        ack (acknowledge refused), watchdog (FAST STOP ``timeout`` s without a request) or unplugged
+        (``finger`` 1 or 2); what each reports: docs/testing.md, "World faults"."""
+        params: dict[str, Any] = {"kind": kind, "on": on}
+        if finger is not None:
+            params["finger"] = finger
+        if timeout is not None:
+            params["timeout"] = timeout
+        return self._apply("fault", **params)
+
+    def slip(self, duration: float = 1.0) -> str:
+        """The part slides out of the fingers; ``duration`` s (gripper clock) later it is gone (PART LOST)."""
+        return self._apply("slip", duration=duration)
+
+    def disconnect(self) -> str:
+        """The gripper closes its TCP connections (FIN); the sessions end without 07h: FAST STOP."""
+        return self._apply("disconnect")
+
+    def net(self, kind: str, on: bool = True, **params: Any) -> str:
+        """Switch a network fault on (with its parameters) or off, at once, on every interface of this
+        gripper: ``latency`` (ms, jitter ms), ``bandwidth`` (rate bytes/s), ``slicer`` (size bytes, gap
+        ms), ``reset`` (timeout s), ``silent`` (timeout s), ``drop`` / ``reorder`` / ``garble`` (p);
+        ``kind="clear"``: all off. See :mod:`pywsg.server.netfault`."""
+        return self._apply("net", kind=kind, on=on, **params)
+
+    def heat(self, delta_c: float) -> str:
+        """Raise (or lower) the temperature by ``delta_c`` °C at once."""
+        return self._apply("heat", delta_c=delta_c)

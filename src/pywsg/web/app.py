@@ -13,6 +13,7 @@ does); ``create_app(...)`` gives the ASGI app alone. The parts, one module each:
 - ``sim_api``  fault injection under /api/sim (Simulation page)
 - ``world_api`` the same for scripts under /api/world (no cookies; own access rules)
 - ``live``     the WebSocket /ws (20 Hz updates)
+- ``health``   GET /healthz for container health checks and probes (no login, no device session)
 
 Units everywhere: mm, mm/s, mm/s², N, °C. See docs/web.md for the API and the security rules.
 """
@@ -38,7 +39,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from . import api, auth, device_api, help_docs, interface_page, live, pages, sim_api, world_api
+from . import api, auth, device_api, health, help_docs, interface_page, live, pages, sim_api, world_api
 from .context import CommandBridge, InputError, LogFeed, WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -54,6 +55,7 @@ REQUEST_BURST = 200
 # Every router of the web interface, in the order they are included. A new part of the interface
 # is a module with ``router(ctx) -> APIRouter`` and one line here.
 ROUTERS: list[Callable[[WebContext], APIRouter]] = [
+    health.router,
     pages.router,
     help_docs.router,
     auth.router,
@@ -210,7 +212,7 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
     config = uvicorn.Config(
         app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
         timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, server_header=False, http=capped_http_protocol(
+        ws_ping_interval=None, ws_max_size=live.WS_MAX_MESSAGE, server_header=False, http=capped_http_protocol(
             max_connections, idle_timeout, requests_per_connection,
             RequestRate(request_rate, request_burst) if request_rate else None),
     )

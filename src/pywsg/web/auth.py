@@ -26,7 +26,7 @@ from starlette.datastructures import Headers
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from . import world_api
+from . import health, world_api
 from .context import MAX_BODY, WebContext, error
 from .pages import template
 from .security import COOKIE_NAME, CSRF_FIELD, CSRF_HEADER, WebSession
@@ -159,7 +159,7 @@ def install_guard(app: FastAPI, ctx: WebContext, *, bound: str | None = None,
         path = request.url.path
         if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules
             return world_api.guard(request, ctx.auth) or await call_next(request)
-        public = path.startswith("/static/") or path == "/login"
+        public = path.startswith("/static/") or path in ("/login", health.PATH)
         if not public and not ctx.auth.may_read(s):
             if path.startswith("/api/") or request.method not in SAFE_METHODS:
                 return error(401, "login required")

@@ -6,7 +6,7 @@ markdown-it-py, which rich already brings; raw HTML in a doc is escaped, not pas
 Only names listed in those folders are served: no path traversal. The downloads are what the
 real panel offers and we can honestly provide, generated from the code that implements them: the
 command reference (HTML), the fieldbus register map (CSV, manual 003 §4) and the device description
-files (GSDML, GSD: every file of :mod:`pywsg.fieldbus.descriptions`).
+files (GSDML, GSD, their bitmaps and the manual's ZIP packages: :func:`pywsg.fieldbus.descriptions.downloads`).
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ def router(ctx: WebContext) -> APIRouter:
 
     @r.get("/downloads/descriptions/{name}")
     async def download_description(name: str) -> Response:
-        """A device description file (GSDML, its bitmap, GSD): only names the package folder lists."""
+        """A device description file or ZIP package: only names :func:`descriptions.downloads` lists."""
         from ..fieldbus import descriptions
 
         try:

@@ -137,11 +137,21 @@ class InterfaceStore:
         if errors:
             return {k: v for k, v in errors.items() if k in changes} or errors
         new = InterfaceConfig(**merged)
-        if self.path is not None:
-            _write_atomic(self.path, json.dumps(dataclasses.asdict(new), indent=2) + "\n")
+        if self.path is not None:   # keys this page does not own (the PROFINET device's I&M data) stay
+            _write_atomic(self.path, json.dumps({**_others(self.path), **dataclasses.asdict(new)}, indent=2) + "\n")
         self.config = new
         self.problem = None
         return {}
+
+
+def _others(path: Path) -> dict[str, Any]:
+    """The keys of the file as it is now that are not :class:`InterfaceConfig` fields."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return {k: v for k, v in data.items() if k not in InterfaceConfig.__dataclass_fields__} \
+        if isinstance(data, dict) else {}
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -138,8 +138,8 @@ def router(ctx: WebContext) -> APIRouter:
             "<li class='muted'>project docs are not installed with this copy (see the repository's docs/)</li>"
         from ..fieldbus import descriptions
 
-        gsd = "".join(f"<li><a href='/downloads/descriptions/{escape(n)}' download>{escape(n)}</a></li>"
-                      for n in descriptions.names())
+        gsd = "".join(f"<li><a href='/downloads/descriptions/{quote(n)}' download>{escape(n)}</a>"
+                      f"{escape(descriptions.NOTES.get(n, ''))}</li>" for n in descriptions.downloads())
         return render_page(ctx, request, "/help", "Documentation", "help.html", "help", docs=docs,
                            reference=command_reference_html(), descriptions=gsd)
 

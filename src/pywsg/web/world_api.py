@@ -40,7 +40,7 @@ from typing import Any
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from ..testing.world import WorldError, apply, world_state
+from ..testing.world import HTTP_ROUTES, WorldError, apply, world_state
 from .context import WebContext, error
 from .security import Auth, is_loopback_host
 
@@ -118,21 +118,6 @@ async def _do(gripper: Any, request: Request, action: str, with_body: bool) -> J
     return JSONResponse({"ok": True, "action": text, "state": world_state(gripper)})
 
 
-# method, path, world action (pywsg.testing.world.apply), whether it takes a JSON body
-_ROUTES = (
-    ("POST", "/part", "part", True),
-    ("DELETE", "/part", "remove_part", False),
-    ("POST", "/block", "block", True),
-    ("DELETE", "/block", "unblock", False),
-    ("POST", "/fault", "fault", True),
-    ("POST", "/heat", "heat", True),
-    ("POST", "/slip", "slip", True),
-    ("POST", "/disconnect", "disconnect", False),
-    ("POST", "/net", "net", True),
-    ("DELETE", "/net", "net_clear", False),
-)
-
-
 def router(ctx: WebContext) -> APIRouter:
     """GET /api/world and the world actions (access: :func:`guard`, applied by the auth middleware)."""
     r = APIRouter(prefix=PREFIX)
@@ -148,6 +133,6 @@ def router(ctx: WebContext) -> APIRouter:
         endpoint.__name__ = f"world_{action}"
         return endpoint
 
-    for method, path, action, with_body in _ROUTES:
+    for method, path, action, with_body in HTTP_ROUTES:
         r.add_api_route(path, make(action, with_body), methods=[method])
     return r

@@ -57,8 +57,12 @@ def test_sim_json_line_and_a_refused_baud_rate(procs: list[subprocess.Popen[str]
     assert data["kind"] == "profibus" and data["url"].startswith("profibus:///dev/")
     bad = subprocess.run(
         [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--profibus", "pty",
-         "--profibus-baudrate", "1500000"], capture_output=True, text=True, timeout=30)
+         "--profibus-baudrate", "12000000"], capture_output=True, text=True, timeout=30)
     assert bad.returncode == 2 and "WEIS5555.gsd" in bad.stderr and "Traceback" not in bad.stderr
+    auto = subprocess.run(
+        [sys.executable, "-c", "from pywsg.cli.main import main; main()", "sim", "--profibus", "pty",
+         "--profibus-baudrate", "auto"], capture_output=True, text=True, timeout=30)
+    assert auto.returncode == 2 and "a pty has no bit timing" in auto.stderr
 
 
 def test_station_address_comes_from_the_stored_interface_settings(

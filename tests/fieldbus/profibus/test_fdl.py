@@ -1,5 +1,7 @@
-"""FDL telegrams (IEC 61158-4-3): encoding checked against pyprofibus's own FDL codec, and a parser that
-drops bad FCS, bad framing and stray bytes without a crash and in bounded time."""
+"""FDL telegrams (IEC 61158-4-3): encoding checked against pyprofibus's own FDL codec, and a receiver
+that frames by idle time: a telegram starts only after an idle line, a telegram cut off by an idle
+line is dropped, and after an error nothing is read until the line goes idle; bad FCS, bad framing and
+stray bytes cost no crash and bounded time."""
 
 from __future__ import annotations
 
@@ -62,11 +64,12 @@ def test_bad_fcs_bad_end_delimiter_and_bad_length_give_no_telegram() -> None:
     bad_le = bytes([0x68, good[1], good[1] + 1]) + good[3:]
     p = fdl.FdlParser()
     for junk in (bad_fcs, bad_ed, bad_le):
-        events = p.feed(junk)
+        events = p.feed(junk, idle=True)
         assert events and all(isinstance(e, fdl.LineError) for e in events), events
-    # The line recovers at once: the next good telegram is read whole.
-    events = p.feed(good)
-    assert [e for e in events if isinstance(e, fdl.Telegram)] == [_one(good)]
+        assert not p.in_step
+    # Without an idle line the good telegram is not taken; after one it is read whole.
+    assert p.feed(good) == [] and p.dropped == len(good)
+    assert p.feed(good, idle=True) == [_one(good)]
 
 
 def test_torn_telegram_waits_for_its_rest_and_tokens_and_acks_are_ignored() -> None:
@@ -74,9 +77,9 @@ def test_torn_telegram_waits_for_its_rest_and_tokens_and_acks_are_ignored() -> N
     p = fdl.FdlParser()
     assert p.feed(good[:5]) == [] and p.pending == 5
     assert p.feed(good[5:]) == [_one(good)]
-    # A token and a short ack are for masters: skipped, and the next telegram is read whole.
-    events = p.feed(bytes([fdl.SD4, 7, 2, fdl.SC]) + good)
-    assert [e for e in events if isinstance(e, fdl.Telegram)] == [_one(good)]
+    # A token and a short ack are other stations' telegrams: passed over, the receiver stays in step.
+    assert p.feed(bytes([fdl.SD4, 7, 2, fdl.SC]) + good) == [_one(good)]
+    assert p.errors == 0
 
 
 def test_a_length_byte_never_allocates_what_it_claims() -> None:
@@ -84,6 +87,33 @@ def test_a_length_byte_never_allocates_what_it_claims() -> None:
     p = fdl.FdlParser()
     p.feed(bytes([0x68, 249, 249, 0x68, 7, 2]))
     assert p.pending == 6
+
+
+def test_a_telegram_cut_off_by_an_idle_line_is_dropped_and_the_next_one_read() -> None:
+    """IEC 61158-4-3: a telegram ends at an idle line. A header claiming 249 bytes, then the line goes
+    idle: the next request is read whole, not swallowed as the cut-off telegram's data unit."""
+    p = fdl.FdlParser()
+    request = fdl.encode(7, 2, 0x49)
+    assert p.feed(bytes([0x68, 249, 249, 0x68, 7, 2, 0x6D])) == []
+    events = p.feed(request * 3, idle=True)
+    assert events[0] == fdl.LineError("cut off by an idle line", 7)
+    assert events[1:] == [_one(request)] * 3
+
+
+def test_a_telegram_inside_a_frame_with_a_corrupted_length_byte_is_not_taken() -> None:
+    """An SD2 whose LE byte was hit on the line carries a whole FDL status request to station 7 in
+    its data unit: a receiver that resynchronises on the next delimiter would answer it. Out of step
+    after the bad header, nothing is read until the line goes idle."""
+    inner = fdl.encode(7, 2, 0x49)
+    frame = bytearray(fdl.encode(9, 2, 0x7D, b"\x00" + inner + b"\x00", dsap=60, ssap=62))
+    frame[1] ^= 0x01                                   # LE no longer equals LEr
+    p = fdl.FdlParser()
+    events = p.feed(bytes(frame), idle=True)
+    assert [e for e in events if isinstance(e, fdl.Telegram)] == []
+    assert events == [fdl.LineError("bad SD2 header", len(frame))]
+    frame[1] = frame[2] = frame[1] + 3                 # both length bytes wrong the same way
+    events = p.feed(bytes(frame), idle=True)
+    assert [e for e in events if isinstance(e, fdl.Telegram)] == []
 
 
 GARBAGE = {
@@ -101,7 +131,7 @@ def _cost(data: bytes) -> tuple[float, int]:
     p = fdl.FdlParser()
     t0 = time.process_time()
     for i in range(0, len(data), 4096):
-        p.feed(data[i:i + 4096])
+        p.feed(data[i:i + 4096], idle=i == 0)   # one stream: after an error all is dropped
     return time.process_time() - t0, p.telegrams
 
 
@@ -121,6 +151,6 @@ def test_one_mib_of_garbage_costs_no_more_than_one_mib_of_telegrams() -> None:
 
 def test_random_bytes_never_raise() -> None:
     p = fdl.FdlParser()
-    for _ in range(200):
-        p.feed(os.urandom(random.randrange(1, 300)))
+    for k in range(200):
+        p.feed(os.urandom(random.randrange(1, 300)), idle=k % 3 == 0)
     assert p.pending <= fdl.MAX_TELEGRAM

@@ -1,12 +1,18 @@
-"""WEIS5555.gsd (002 §2.1.1, §3.3): parsed by pyprofibus's GSD parser, and the slave agrees with it."""
+"""WEIS5555.gsd (002 §2.1.1, §3.3): parsed by the GSD specification's rules and by pyprofibus's GSD
+parser, and the slave agrees with it."""
 
 from __future__ import annotations
 
+from importlib import resources
+
 import pytest
 
+from pywsg.fieldbus.profibus import DIAGNOSIS_FLAGS
 from pywsg.fieldbus.profibus.gsd import facts, gsd_text, parse_facts
 from pywsg.fieldbus.profibus.line import check_baudrate
+from pywsg.protocol import SystemFlag
 
+from . import gsdspec
 from .pbmaster import gsd_path, pyprofibus
 
 
@@ -36,20 +42,46 @@ def test_the_slave_reads_the_same_file(gsd: object) -> None:
         assert gsd.getMaxTSDR(rate) == f.max_tsdr[rate]  # type: ignore[attr-defined]
         check_baudrate(rate)
     with pytest.raises(ValueError, match=r"not one WEIS5555\.gsd declares"):
-        check_baudrate(1_500_000)
+        check_baudrate(3_000_000)
 
 
 def test_unit_diag_bits_name_each_error_flag_of_the_manual() -> None:
-    """002 §3.3's error flags have a text at UnitDiagBit(8 + SYSSTATE bit) (docs/fidelity.md)."""
-    from pywsg.fieldbus.profibus import DIAGNOSIS_FLAGS
-
-    text = gsd_text()
-    from pywsg.protocol import SystemFlag
-
+    """002 §3.3's error flags each have a text at Unit_Diag_Bit(8 + SYSSTATE bit) (docs/fidelity.md)."""
+    words = {"SF_SOFT_LIMIT_MINUS": "Soft limit minus", "SF_SOFT_LIMIT_PLUS": "Soft limit plus",
+             "SF_FAST_STOP": "Fast stop", "SF_TEMP_FAULT": "Temperature fault", "SF_POWER_FAULT": "Power fault",
+             "SF_CURR_FAULT": "Engine current fault", "SF_FINGER_FAULT": "Finger fault",
+             "SF_CMD_FAILURE": "Command failure", "SF_SCRIPT_FAILURE": "Script failure"}
+    found, _ = gsdspec.check(gsd_text().encode("latin-1"))
     for flag in (f for f in SystemFlag if f.value and DIAGNOSIS_FLAGS & f):  # Python 3.10: no iter(flag)
         bit = int(flag).bit_length() - 1
-        key = f"UnitDiagBit({8 + bit})"
-        assert key in text and flag.name in text.split(key)[1].split("\n")[0]
+        assert found[f"Unit_Diag_Bit({8 + bit})"] == f'"{words[str(flag.name)]}"'
+
+
+def test_the_gsd_keeps_the_gsd_specification_rules() -> None:
+    """Parsed by the specification's rules (tests/fieldbus/profibus/gsdspec.py), not only by
+    pyprofibus's lenient parser: ASCII, lines of at most 80 characters, keywords as spelled there
+    (Unit_Diag_Bit), names and texts of at most 32 characters, mandatory keywords."""
+    raw = (resources.files("pywsg.fieldbus") / "descriptions" / "WEIS5555.gsd").read_bytes()
+    found, problems = gsdspec.check(raw)
+    assert problems == []
+    assert found["Ident_Number"] == "0x5555" and found["Auto_Baud_supp"] == "1"
+
+
+@pytest.mark.parametrize(("line", "problem"), [
+    ('UnitDiagBit(20) = "Fast stop"', "unknown keyword 'UnitDiagBit'"),
+    ('Unit_Diag_Bit(20) = "Engine current fault (SF_CURR_FAULT)"', "text of 36 characters (at most 32)"),
+    ('Module = "WSG I/O: 8 bytes out, 12 bytes in" 0xA7,0x9B\nEndModule', "module name of 33 characters"),
+    ("; 2017 \u00a72.1.1", "characters outside printable ASCII: '\u00a7'"),
+    ("; " + "=" * 79, "81 characters (at most 80)"),
+    ("Auto_Baud_supp = 2", "'2' is not a Boolean"),
+])
+def test_the_specification_check_catches_what_tools_refuse(line: str, problem: str) -> None:
+    """Each fault the issue found in the old file (and two more) is caught by the check."""
+    text = gsd_text().replace("Max_Diag_Data_Len   = 16", "Max_Diag_Data_Len   = 16\n" + line)
+    if "Module" in line:
+        text = text[:text.index("Module = ")] + line + "\n"
+    _, problems = gsdspec.check(text.encode("latin-1"))
+    assert any(problem in p for p in problems), problems
 
 
 def test_a_gsd_without_module_is_refused() -> None:

@@ -4,6 +4,7 @@ a pty opened through pyserial: 8E1 with parity checking on, min TSDR honoured, b
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import termios
 import time
@@ -38,7 +39,16 @@ async def line() -> AsyncIterator[tuple[ProfibusAdapter, int]]:
 
 
 async def _ask(fd: int, request: bytes, timeout: float = 5.0) -> tuple[bytes, float]:
-    """Write ``request``; (the response, seconds until its first byte)."""
+    """Write ``request``; (the response, seconds until its first byte). Repeated after 0.3 s without
+    an answer, as a DP master does after its slot time: on a serial device the slave drops an answer
+    it could not start within MaxTsdr (a loaded host)."""
+    for _ in range(int(timeout / 0.3)):
+        with contextlib.suppress(AssertionError):
+            return await _ask_once(fd, request, 0.3)
+    return await _ask_once(fd, request, timeout)
+
+
+async def _ask_once(fd: int, request: bytes, timeout: float) -> tuple[bytes, float]:
     os.write(fd, request)
     t0 = time.monotonic()
     deadline = t0 + timeout

@@ -242,3 +242,35 @@ def test_sync_and_freeze_from_pyprofibus(pb_sim: SimThread) -> None:
         run_until(master, desc, both_modes, "Sync and Freeze modes")
         diag = ad.slave.diagnosis(MASTER)
     assert diag[1] & 0x30 == 0x30                                      # Freeze_Mode and Sync_Mode bits
+
+
+def test_no_further_address_change_is_persisted_with_the_address(pb_factory: object, tmp_path: object) -> None:
+    """Set_Slave_Address with No_Add_Chg: stored beside the address, so after a restart the slave at
+    its new address still refuses (RS) another Set_Slave_Address."""
+    import json
+    import select
+    import tty
+    from pathlib import Path
+
+    settings = Path(str(tmp_path)) / "s.json"
+
+    def ask(sim: object, request: bytes) -> bytes:
+        fd = os.open(adapter(sim).path, os.O_RDWR | os.O_NOCTTY)   # type: ignore[arg-type]
+        try:
+            tty.setraw(fd)
+            os.write(fd, request)
+            assert select.select([fd], [], [], 5)[0], f"no answer to {request.hex(' ')}"
+            time.sleep(0.01)
+            return os.read(fd, 64)
+        finally:
+            os.close(fd)
+
+    first = pb_factory(tcp_port=None, udp_port=None, profibus="pty", settings=settings)  # type: ignore[operator]
+    assert ask(first, fdl.encode(7, MASTER, 0x4D, bytes((33, 0x55, 0x55, 1)), dsap=55, ssap=62)) == fdl.SHORT_ACK
+    first.stop()
+    stored = json.loads((settings.parent / "s.interface.json").read_text())
+    assert stored["profibus_address"] == 33 and stored["profibus_address_locked"] is True
+    again = pb_factory(tcp_port=None, udp_port=None, profibus="pty", settings=settings)  # type: ignore[operator]
+    assert adapter(again).address == 33
+    refused = ask(again, fdl.encode(33, MASTER, 0x4D, bytes((34, 0x55, 0x55, 0)), dsap=55, ssap=62))
+    assert refused == fdl.encode(MASTER, 33, fdl.RES_RS) and adapter(again).address == 33

@@ -6,12 +6,13 @@ from __future__ import annotations
 import asyncio
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from pywsg.cli.plc import run_demo
-from pywsg.protocol import CATALOG, Command, Frame
+from pywsg.protocol import CATALOG, Command, Frame, SystemFlag
 
 from ...simthread import SimThread
 from .conftest import adapter
@@ -45,13 +46,23 @@ def test_scl_cycle_holds_the_part_over_profibus(pb_sim: SimThread) -> None:
 
 
 def test_wsg_plc_demo_url_profibus(pb_sim: SimThread) -> None:
-    """``wsg plc-demo --url profibus://PTY?address=7&baudrate=19200`` as a user runs it."""
+    """``wsg plc-demo --url profibus://PTY?address=7&baudrate=19200`` as a user runs it. At the end its
+    master goes offline (stops polling, as a DP master leaving Operate does) and says so; the slave's
+    watchdog then puts the gripper in fail-safe: FAST STOP, Wait_Prm."""
     _fast_fingers_and_a_part(pb_sim)
     ad = adapter(pb_sim)
-    proc = subprocess.run([WSG, "plc-demo", "--url", f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=5000",
+    proc = subprocess.run([WSG, "plc-demo", "--url", f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=1000",
                            "--cycles", "1", "--timeout", "30"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "done: 1 cycle(s), 1 part(s) held, 0 without part, 0 error recovery(ies)" in proc.stdout
+    assert proc.stdout.strip().endswith(
+        "PROFIBUS master offline: slave 7's watchdog puts the gripper in fail-safe after 1000 ms "
+        "(FAST STOP, outputs zero); the next master acknowledges it with STOP/ACK")
+    deadline = time.monotonic() + 10
+    while pb_sim.call(lambda: ad.slave.stats.watchdog_expiries) == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert pb_sim.call(lambda: ad.slave.stats.watchdog_expiries) == 1
+    assert pb_sim.call(lambda: pb_sim.gripper.system_flags() & SystemFlag.SF_FAST_STOP)
 
 
 def test_fieldbus_gripper_grips_a_part_over_profibus(pb_sim: SimThread) -> None:

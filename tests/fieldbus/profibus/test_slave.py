@@ -154,6 +154,20 @@ def test_rising_error_flag_gives_a_high_priority_response_until_the_diag_is_read
     assert bus.reply(OutputImage(cmdflags=CmdFlag.FASTSTOP).pack()).fc == fdl.RES_DL
 
 
+def test_a_flag_going_away_is_no_high_priority_response(slave: DpSlave, port: Recorder) -> None:
+    """002 §3.3 / 003 §4.2 name only a flag that "changes from 0 to 1": when the fault goes away the
+    responses stay low priority (the master sees it with its next Slave_Diag)."""
+    bus = Bus(slave)
+    bus.connect()
+    bus.reply(bytes(8))
+    port.gripper.faults.finger_fault(0, True)
+    assert bus.reply(bytes(8)).fc == fdl.RES_DH
+    bus.diag()
+    port.gripper.faults.finger_fault(0, False)           # the last listed flag goes away
+    assert bus.reply(bytes(8)).fc == fdl.RES_DL
+    assert int.from_bytes(bus.diag()[7:11], "little") == 0
+
+
 def test_wrong_output_length_ends_data_exchange_fail_safe(slave: DpSlave, port: Recorder) -> None:
     bus = Bus(slave)
     bus.connect()
@@ -208,32 +222,107 @@ def test_freeze_holds_inputs_and_unsupported_sync_is_reported(slave: DpSlave, po
 
 
 def test_watchdog_expiry_is_fail_safe_and_back_to_wait_prm(slave: DpSlave, port: Recorder) -> None:
+    """On expiry in Data_Exch: FAST STOP, zero outputs, Wait_Prm, unlocked."""
     bus = Bus(slave)
     bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_WD_ON, wd=(10, 1))
     bus.now = 0.05
-    bus.reply(bytes(8))
+    bus.reply(OutputImage(if_flags=0x0F).pack())
     assert not slave.check_watchdog(0.14)               # restarted at 0.05: due at 0.15
     assert slave.check_watchdog(0.16)
     assert slave.state is DpState.WAIT_PRM and slave.master is None
     assert port.fail_safes == [("PROFIBUS DP", "watchdog expired")]
+    assert port.gripper.system_flags() & SystemFlag.SF_FAST_STOP and port.output_bytes == bytes(8)
 
 
-def test_master_lock_keeps_a_second_master_out(slave: DpSlave) -> None:
+def test_a_telegram_after_the_deadline_finds_the_watchdog_expired(slave: DpSlave, port: Recorder) -> None:
+    """Expiry is judged on arrival too: a Data_Exchange 150 ms into a 100 ms watchdog (no timer has
+    run yet) does not revive the slave; it is refused (RS) and the gripper is already fail-safe."""
+    bus = Bus(slave)
+    bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_WD_ON, wd=(10, 1))
+    bus.now = 0.15
+    assert bus.srd(bytes(8)) == fdl.encode(M, 7, fdl.RES_RS)
+    assert slave.state is DpState.WAIT_PRM and port.fail_safes == [("PROFIBUS DP", "watchdog expired")]
+
+
+def test_the_watchdog_restarts_at_every_telegram_to_the_station(slave: DpSlave) -> None:
+    """Any telegram addressed to the slave restarts it, a repeat or another master's diagnosis
+    request too; a telegram to another station does not."""
+    bus = Bus(slave)
+    bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_WD_ON, wd=(10, 1))
+    other = Bus(slave, sa=3)
+    other.now = 0.09
+    other.diag()
+    assert slave.watchdog_deadline == pytest.approx(0.19)
+    bus.now = 0.18
+    bus.raw(0x49, da=8)                                  # FDL status to station 8
+    assert slave.watchdog_deadline == pytest.approx(0.19)
+
+
+def test_set_prm_rearms_the_watchdog_with_its_new_time(slave: DpSlave) -> None:
+    """A Set_Prm that shrinks the watchdog from 2 s to 200 ms: the deadline moves to 200 ms after it."""
+    bus = Bus(slave)
+    bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_WD_ON, wd=(200, 1))
+    assert slave.watchdog_deadline == pytest.approx(2.0)
+    bus.now = 0.5
+    bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_WD_ON, wd=(20, 1))
+    assert slave.watchdog_deadline == pytest.approx(0.7)
+    bus.now = 0.0
+    bus.connect(status=DP.PRM_LOCK_REQ, wd=(20, 1))       # WD_On clear: no watchdog
+    assert slave.watchdog_deadline is None and not slave.check_watchdog(100.0)
+
+
+def test_a_locked_slave_keeps_a_second_master_out_and_sends_master_lock_0(slave: DpSlave) -> None:
+    """The slave names its master in diagnosis byte 3; Master_Lock (byte 0 bit 7) is the master's
+    to set (it compares byte 3 with its own address), so the slave sends 0."""
     Bus(slave).connect()
     other = Bus(slave, sa=3)
     assert other.set_prm() == fdl.SHORT_ACK
     assert slave.master == M and slave.state is DpState.DATA_EXCH
-    assert other.diag()[0] & DP.DIAG1_MASTER_LOCK
+    d = other.diag()
+    assert not d[0] & DP.DIAG1_MASTER_LOCK and d[3] == M
     assert other.srd(bytes(8)) == fdl.encode(3, 7, fdl.RES_RS)
 
 
+def test_the_fcb_is_judged_against_the_immediately_preceding_frame(slave: DpSlave, port: Recorder) -> None:
+    """Master 2's request, then master 3's, then master 2's with the same FCB: not a repeat (the frame
+    before it was master 3's), so it is processed."""
+    bus = Bus(slave)
+    bus.connect()
+    bus.srd(OutputImage(if_flags=1).pack())
+    Bus(slave, sa=3).srd(b"", DP.SAP_GET_CFG)
+    bus.fcb ^= 0x20                                     # same FCB as master 2's last request
+    bus.srd(OutputImage(if_flags=2).pack())
+    assert port.output_bytes == OutputImage(if_flags=2).pack() and slave.stats.repeats == 0
+
+
+def test_rd_inp_returns_the_frozen_inputs_during_freeze(slave: DpSlave, port: Recorder) -> None:
+    bus = Bus(slave)
+    bus.connect(status=DP.PRM_LOCK_REQ | DP.PRM_FREEZE_REQ)
+    bus.raw(0x46, bytes((DP.GC_FREEZE, 0)), DP.SAP_GLOBAL_CONTROL, da=fdl.BROADCAST)
+    frozen = bus.reply(b"", DP.SAP_RD_INP).data
+    port.gripper.faults.power_fault(True)
+    assert port.input_bytes() != frozen
+    assert bus.reply(b"", DP.SAP_RD_INP).data == frozen
+
+
+def test_request_ident_names_the_station_and_lsap_status_is_not_offered(slave: DpSlave) -> None:
+    """FDL Request Ident (FC 0Eh): four lengths, then vendor, controller type, hardware and software
+    release (the GSD's); Request LSAP Status (FC 0Fh): RS, the service is not activated."""
+    resp = fdl.FdlParser().feed(Bus(slave).raw(0x4E) or b"")[0]
+    assert isinstance(resp, fdl.Telegram) and resp.fc == fdl.RES_DL and resp.da == M
+    lengths, text = resp.data[:4], resp.data[4:]
+    assert sum(lengths) == len(text) and text.startswith(b"Weiss Robotics")
+    assert text[lengths[0]:lengths[0] + lengths[1]] == b"pywsg"
+    assert Bus(slave).raw(0x4F, dsap=DP.SAP_SLAVE_DIAG) == fdl.encode(M, 7, fdl.RES_RS)
+
+
 def test_set_slave_address_in_wait_prm_is_taken_after_the_response(port: Recorder) -> None:
-    changed: list[int] = []
-    s = DpSlave(port, address=7, on_address_change=changed.append)
+    changed: list[tuple[int, bool]] = []
+    s = DpSlave(port, address=7, on_address_change=lambda a, locked: changed.append((a, locked)))
     bus = Bus(s)
     req = bytes((12,)) + b"\x55\x55" + b"\x00"
     assert bus.srd(req, DP.SAP_SET_SLAVE_ADDRESS) == fdl.SHORT_ACK
-    assert s.address == 12 and changed == [12]
+    assert s.address == 12 and changed == [(12, False)]
     assert bus.raw(0x49) is None                        # the old address is deaf now
     assert bus.raw(0x49, da=12) == fdl.encode(M, 12, fdl.RES_OK)
 
@@ -248,6 +337,9 @@ def test_set_slave_address_refused_with_wrong_ident_or_after_no_add_chg(port: Re
     bus9.raw = lambda fc, data=b"", dsap=None, da=9: Bus.raw(bus9, fc, data, dsap, da)  # type: ignore[method-assign]
     assert bus9.srd(bytes((10, 0x55, 0x55, 0)), DP.SAP_SET_SLAVE_ADDRESS) == fdl.encode(M, 9, fdl.RES_RS)
     assert s.address == 9
+    # After a restart with the stored lock (station.AddressStore) the slave still refuses.
+    bus9.slave = DpSlave(port, address=9, address_locked=True)
+    assert bus9.srd(bytes((10, 0x55, 0x55, 0)), DP.SAP_SET_SLAVE_ADDRESS) == fdl.encode(M, 9, fdl.RES_RS)
 
 
 def test_unknown_sap_answers_rs_and_telegrams_for_others_get_nothing(slave: DpSlave) -> None:

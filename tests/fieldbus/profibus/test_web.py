@@ -35,6 +35,7 @@ def _bus_state(c: httpx.Client) -> dict[str, str]:
 def test_bus_state_and_station_address_from_the_settings_page(
         pb_factory: Callable[..., SimThread], tmp_path: Path) -> None:
     settings = tmp_path / "s.json"
+    (tmp_path / "s.interface.json").write_text(json.dumps({"profibus_address": 7, "profibus_address_locked": True}))
     sim = pb_factory(tcp_port=None, udp_port=None, profibus="pty", web_port=0, settings=settings)
     ad = adapter(sim)
     c = _client(sim)
@@ -52,7 +53,9 @@ def test_bus_state_and_station_address_from_the_settings_page(
             assert r.status_code == 200, r.text
         assert ad.address == 12 and ad.slave.state is DpState.WAIT_PRM
         assert _bus_state(c)["Station Address"] == "12"
-        assert json.loads((tmp_path / "s.interface.json").read_text())["profibus_address"] == 12
+        stored = json.loads((tmp_path / "s.interface.json").read_text())
+        assert stored["profibus_address"] == 12
+        assert stored["profibus_address_locked"] is True      # the web page keeps the slave's No_Add_Chg
         # The master now finds the slave at 12.
         with dp_master(ad.path, address=12) as (master, desc):
             start(master, desc)

@@ -10,14 +10,19 @@ State machine (IEC 61158-6-3 / EN 50170 DP-V0): **Wait_Prm → Wait_Cfg → Data
   in, each consistent), else Cfg_Fault and Wait_Prm.
 - Data_Exchange (default SAP): 8 output bytes go to the FieldbusController, the 12 input bytes come
   back; the response is high priority (DH) while a new diagnosis waits: one of the manual's
-  error-related flags rose (002 §3.3), or they all went away.
+  error-related flags rose (002 §3.3 / 003 §4.2; a flag going away is not news: docs/fidelity.md).
 - Slave_Diag (60): 6 standard bytes + the manual's 10-byte device-related block with SYSSTATE.
 - Global_Control (58): Clear_Data → fail-safe; Sync/Unsync, Freeze/Unfreeze.
-- Get_Cfg (59), Rd_Inp (56), Rd_Outp (57), Set_Slave_Address (55, only in Wait_Prm, persisted by
-  the caller's ``on_address_change``).
-- Watchdog: restarted by every telegram of the locking master; on expiry in Data_Exch the controller
-  goes fail-safe, the slave to Wait_Prm (docs/fidelity.md).
-- FCB/FCV: a request repeated with the same FCB (FCV=1) gets the stored response again, unprocessed.
+- Get_Cfg (59), Rd_Inp (56; the frozen inputs during Freeze), Rd_Outp (57), Set_Slave_Address (55,
+  only in Wait_Prm; the address and its No_Add_Chg persisted by the caller's ``on_address_change``).
+- FDL: Request FDL Status (every station answers it) and Request Ident (vendor, controller,
+  hardware and software release from the GSD); Request LSAP Status gets RS (not offered).
+- Watchdog (WD_On): the deadline restarts at every telegram addressed to this station and is judged
+  on arrival too, so a telegram after the deadline finds the slave already expired; on expiry the
+  controller goes fail-safe (FAST STOP, zero outputs) when in Data_Exch, and the slave to Wait_Prm.
+- FCB/FCV: a request that repeats the FCB of the immediately preceding frame from the same master
+  (FCV=1) gets the stored response again, unprocessed. One frame is remembered, not one per master.
+- Master_Lock (diagnosis byte 0 bit 7) is sent 0: the standard has the master set it.
 
 Times are ``time.monotonic()`` seconds passed in by the caller: bus watchdogs run on real time, not on
 the gripper's (possibly manual) clock.
@@ -100,6 +105,15 @@ class ImagePort(Protocol):
     def fail_safe(self, bus: str, reason: str) -> None: ...
 
 
+def ident_data() -> bytes:
+    """The data unit of the answer to Request Ident (IEC 61158-4-3): four length bytes, then the
+    vendor name, controller type, hardware release and software release, from the GSD."""
+    gsd = facts()
+    parts = [t.encode("latin-1")[:255] for t in (gsd.vendor_name, gsd.implementation_type,
+                                                  gsd.hardware_release, gsd.software_release)]
+    return bytes(len(p) for p in parts) + b"".join(parts)
+
+
 def fail_safe(port: ImagePort, reason: str) -> None:
     """What the gripper does when its master is lost: the controller's one rule for every bus
     (FAST STOP, outputs to zero; docs/fidelity.md "Fieldbus master lost")."""
@@ -122,7 +136,8 @@ class DpSlave:
     """One DP-V0 slave at ``address`` serving ``port`` (the FieldbusController)."""
 
     def __init__(self, port: ImagePort, address: int = 7,
-                 on_address_change: Callable[[int], None] | None = None) -> None:
+                 on_address_change: Callable[[int, bool], None] | None = None,
+                 address_locked: bool = False) -> None:
         if not 0 <= address <= MAX_STATION_ADDRESS:
             raise ValueError(f"PROFIBUS station address is 0..{MAX_STATION_ADDRESS}, got {address}")
         gsd = facts()
@@ -142,14 +157,14 @@ class DpSlave:
         self.sync_enabled = self.freeze_enabled = False
         self.sync_mode = self.freeze_mode = False
         self.prm_fault = self.cfg_fault = self.not_supported = False
-        self.address_locked = False             # Set_Slave_Address No_Add_Chg
+        self.address_locked = address_locked    # Set_Slave_Address No_Add_Chg (persisted)
         self.outputs = bytes(OUTPUT_SIZE)       # last outputs applied (Rd_Outp)
         self._sync_pending: bytes | None = None
         self._frozen: bytes | None = None
         self._sysstate = SystemFlag.NONE
         self._diag_pending = False               # a new diagnosis the master has not read
-        self._fcb: dict[int, int] = {}           # SA → FCB of its last request
-        self._last: dict[int, bytes | None] = {}  # SA → response to that request
+        # The immediately preceding frame: (SA, FCB or None without FCV, our response).
+        self._last: tuple[int, int | None, bytes | None] | None = None
         self._pending_address: int | None = None
         self.last_reason = ""                   # why the slave last left Data_Exch / refused
 
@@ -160,36 +175,49 @@ class DpSlave:
 
     # --- the entry point ---------------------------------------------------------------------
     def handle(self, tel: fdl.Telegram, now: float) -> bytes | None:
-        """The response to ``tel`` (bytes to put on the line), or None: no answer."""
+        """The response to ``tel`` (bytes to put on the line), or None: no answer. ``now`` is when
+        the telegram arrived (monotonic s): the watchdog is judged against it before anything else."""
         if not tel.is_request or tel.da not in (self.address, fdl.BROADCAST):
             return None
+        self.check_watchdog(now)                    # a late telegram finds the watchdog expired
         func = tel.function
         if tel.da == fdl.BROADCAST:
             if func in (fdl.REQ_SDN_HI, fdl.REQ_SDN_LO) and tel.dsap == SAP_GLOBAL_CONTROL:
-                self._touch(tel.sa, now)
+                if tel.sa == self.master:
+                    self._touch(now)
                 self._global_control(tel, now)
             return None
         self.stats.requests += 1
-        if func == fdl.REQ_FDL_STATUS:
-            return fdl.encode(tel.sa, self.address, fdl.RES_OK)
+        self._touch(now)                            # any telegram to this station, a repeat too
+        if func in (fdl.REQ_FDL_STATUS, fdl.REQ_IDENT, fdl.REQ_LSAP_STATUS):
+            self._last = (tel.sa, None, None)
+            return self._fdl_management(tel)
         if func in (fdl.REQ_SDN_HI, fdl.REQ_SDN_LO):
-            self._touch(tel.sa, now)
+            self._last = (tel.sa, None, None)
             if tel.dsap == SAP_GLOBAL_CONTROL:
                 self._global_control(tel, now)
             return None
         if func not in (fdl.REQ_SRD_HI, fdl.REQ_SRD_LO, fdl.REQ_SDA_HI, fdl.REQ_SDA_LO):
-            return None                              # Ident, LSAP status, time events: not offered
-        self._touch(tel.sa, now)                    # a repeat is a sign of life too
-        fcb = tel.fc & fdl.FC_FCB
-        if tel.fc & fdl.FC_FCV and self._fcb.get(tel.sa) == fcb and tel.sa in self._last:
+            return None                              # time events, clock values: not offered
+        fcb = tel.fc & fdl.FC_FCB if tel.fc & fdl.FC_FCV else None
+        last = self._last
+        if fcb is not None and last is not None and last[0] == tel.sa and last[1] == fcb:
             self.stats.repeats += 1                 # the master lost our response: send it again
-            return self._last[tel.sa]
+            return last[2]
         response = self._service(tel, now)
         if func in (fdl.REQ_SDA_HI, fdl.REQ_SDA_LO):
             response = fdl.SHORT_ACK
-        self._fcb[tel.sa] = fcb
-        self._last[tel.sa] = response
+        self._last = (tel.sa, fcb, response)
         return response
+
+    def _fdl_management(self, tel: fdl.Telegram) -> bytes:
+        """FDL Status: "slave, OK" (a master's live list); Ident: the GSD's names; LSAP Status: RS."""
+        func = tel.function
+        if func == fdl.REQ_FDL_STATUS:
+            return fdl.encode(tel.sa, self.address, fdl.RES_OK)
+        if func == fdl.REQ_IDENT:
+            return fdl.encode(tel.sa, self.address, fdl.RES_DL, ident_data())
+        return self._rs(tel)
 
     def after_response(self) -> None:
         """Call once the response has been put on the line (Set_Slave_Address takes effect now)."""
@@ -197,10 +225,9 @@ class DpSlave:
         if new is not None and new != self.address:
             log.info("PROFIBUS DP: station address %d -> %d (Set_Slave_Address)", self.address, new)
             self.address = new
-            self._fcb.clear()
-            self._last.clear()
+            self._last = None
             if self.on_address_change is not None:
-                self.on_address_change(new)
+                self.on_address_change(new, self.address_locked)
 
     def set_address(self, address: int) -> None:
         """Change the station address from outside the bus (Settings → Command Interface). A master
@@ -213,17 +240,18 @@ class DpSlave:
             self._leave(f"station address changed to {address}", safe=self.state is DpState.DATA_EXCH)
         self.master = None
         self.address = address
-        self._fcb.clear()
-        self._last.clear()
+        self._last = None
 
     def check_watchdog(self, now: float) -> bool:
-        """Expire the watchdog if its time has come; True when it did."""
+        """Expire the watchdog if its time has come (``now`` in monotonic s); True when it did."""
         if self.watchdog_deadline is None or now < self.watchdog_deadline:
             return False
         self.watchdog_deadline = None
         self.stats.watchdog_expiries += 1
-        was = self.state
-        self._leave("watchdog expired", safe=was is DpState.DATA_EXCH)
+        log.warning("PROFIBUS DP station %d: watchdog expired (%.0f ms without a telegram)",
+                    self.address, 1000 * (self.watchdog_s or 0))
+        self._leave("watchdog expired", safe=self.state is DpState.DATA_EXCH)
+        self.master = None
         return True
 
     # --- services ----------------------------------------------------------------------------
@@ -281,8 +309,7 @@ class DpSlave:
             s1 |= DIAG1_NOT_SUPPORTED
         if self.prm_fault:
             s1 |= DIAG1_PRM_FAULT
-        if self.master is not None and requester is not None and requester != self.master:
-            s1 |= DIAG1_MASTER_LOCK
+        # Master_Lock (bit 7) stays 0: the master sets it when another master's address is in byte 3.
         s2 = DIAG2_ALWAYS_ONE
         if self.state is DpState.WAIT_PRM:
             s2 |= DIAG2_PRM_REQ
@@ -334,6 +361,7 @@ class DpSlave:
             self._leave("new Set_Prm", safe=False)
         self.master = tel.sa
         self.watchdog_s = 0.010 * wd1 * wd2 if status & PRM_WD_ON else None
+        self.watchdog_deadline = None            # re-armed below with the new time (or off)
         self.sync_enabled = bool(status & PRM_SYNC_REQ)
         self.freeze_enabled = bool(status & PRM_FREEZE_REQ)
         self.sync_mode = self.freeze_mode = False
@@ -341,7 +369,7 @@ class DpSlave:
         if min_tsdr:
             self.min_tsdr = min_tsdr
         self.state = DpState.WAIT_CFG
-        self._touch(tel.sa, now)
+        self._touch(now)
         return fdl.SHORT_ACK
 
     def _chk_cfg(self, tel: fdl.Telegram, now: float) -> bytes:
@@ -359,7 +387,6 @@ class DpSlave:
             self._sysstate = SystemFlag.NONE     # a fault present at start is news to this master
             self.last_reason = ""
             log.info("PROFIBUS DP: station %d in Data_Exch with master %d", self.address, tel.sa)
-        self._touch(tel.sa, now)
         return fdl.SHORT_ACK
 
     def _global_control_srd(self, tel: fdl.Telegram, now: float) -> bytes:
@@ -372,7 +399,8 @@ class DpSlave:
     def _rd_inp(self, tel: fdl.Telegram, now: float) -> bytes:
         if self.state is not DpState.DATA_EXCH:
             return self._rs(tel)
-        return self._reply(tel, self.port.input_bytes())
+        frozen = self._frozen if self.freeze_mode else None
+        return self._reply(tel, frozen if frozen is not None else self.port.input_bytes())
 
     def _rd_outp(self, tel: fdl.Telegram, now: float) -> bytes:
         if self.state is not DpState.DATA_EXCH:
@@ -421,15 +449,15 @@ class DpSlave:
         self.port.write_outputs(OutputImage.unpack(self.outputs))
 
     def _watch_diag(self, inputs: bytes) -> None:
-        """002 §3.3: a new diagnosis when a listed flag rises; also when the last one goes away."""
+        """002 §3.3 / 003 §4.2: a new diagnosis when a listed flag rises (0 → 1), and only then."""
         now_flags = SystemFlag(int(sysstate_from_bytes(inputs[2:6])) & int(DIAGNOSIS_FLAGS))
-        before = self._sysstate
-        if now_flags & ~before or (before and not now_flags):
+        if now_flags & ~self._sysstate:
             self._diag_pending = True
         self._sysstate = now_flags
 
-    def _touch(self, sa: int, now: float) -> None:
-        if sa == self.master and self.watchdog_s is not None and self.state is not DpState.WAIT_PRM:
+    def _touch(self, now: float) -> None:
+        """Restart the watchdog (when Set_Prm turned it on and the slave is parameterised)."""
+        if self.watchdog_s is not None and self.state is not DpState.WAIT_PRM:
             self.watchdog_deadline = now + self.watchdog_s
 
     def _leave(self, reason: str, safe: bool) -> None:
@@ -442,8 +470,6 @@ class DpSlave:
         self.watchdog_deadline = None
         self.sync_mode = self.freeze_mode = False
         self._sync_pending = self._frozen = None
-        if reason == "watchdog expired":
-            self.master = None
 
     def _reply(self, tel: fdl.Telegram, data: bytes) -> bytes:
         return fdl.encode(tel.sa, self.address, fdl.RES_DL, data, dsap=tel.ssap, ssap=tel.dsap)

@@ -14,17 +14,19 @@ FCS is the arithmetic sum modulo 256 of DA, SA, FC and the data unit. Bit 7 of D
 destination (source) address extension byte leads the data unit: its low 6 bits are the service access
 point (SAP), bit 6 marks a segment address, bit 7 another extension byte.
 
-A real RS-485 receiver frames telegrams by idle time on the line; a pty has none, so the parser frames
-by structure: it checks the start delimiter, the length bytes, the end delimiter and the FCS, and after
-an error resumes at the next byte that can start a telegram (one regex search, so 1 MiB of garbage
-costs one pass). A structurally sound SD2 whose FCS fails is skipped whole. Nothing a length byte
-claims is allocated: a telegram is at most 255 bytes, so the buffer never holds more than that plus
-one read.
+A receiver frames telegrams by the line's idle time (IEC 61158-4-3): a telegram starts only after the
+synchronisation time T_SYN (33 bit times of idle line), and a telegram cut off by an idle line is
+dropped. The parser is told, with each chunk, whether the line was idle before it (the caller judges
+that from the time gap between reads: :mod:`.line`). Within a synchronised stream it checks the start
+delimiter, the length bytes, the end delimiter and the FCS; at the first error it drops everything
+until the line goes idle again, so a telegram inside a damaged one (a corrupted length byte) is never
+taken for a request. Tokens (SD4) and short acknowledges (SC) of other stations keep the receiver in
+step and are not reported. Nothing a length byte claims is allocated: a telegram is at most 255 bytes,
+so the buffer never holds more than that plus one read.
 """
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 SD1 = 0x10
@@ -58,7 +60,8 @@ REQ_SDN_HI = 0x06
 REQ_FDL_STATUS = 0x09
 REQ_SRD_LO = 0x0C
 REQ_SRD_HI = 0x0D
-REQ_IDENT = 0x0E
+REQ_IDENT = 0x0E         # Request Ident with reply
+REQ_LSAP_STATUS = 0x0F   # Request LSAP Status with reply
 
 # Response functions (FC_REQUEST clear; station type bits 4..5 = 00: slave).
 RES_OK = 0x00            # positive acknowledge (FDL status reply of a slave)
@@ -69,15 +72,13 @@ RES_DL = 0x08            # response data, low priority
 RES_NR = 0x09            # no response data
 RES_DH = 0x0A            # response data, high priority (the slave has a new diagnosis)
 
-# A slave resynchronises only on the delimiters of telegrams it may have to answer: a token (SD4) or a
-# short acknowledge (SC) on the line is someone else's business, and skipping them with the garbage
-# keeps the cost of a stream of E5 bytes as low as that of any other noise.
-_START = re.compile(rb"[\x10\x68\xa2]")
-# Where a telegram can start: its delimiters at the right distance (SD1, SD3) or an SD2 header with two
-# equal, valid length bytes. Searching for this in C skips any noise without a Python step per byte.
-_PLAUSIBLE = re.compile(rb"\x10[\x00-\xff]{4}\x16|\xa2[\x00-\xff]{12}\x16|\x68([\x04-\xf9])\1\x68", re.DOTALL)
-_LONGEST_FIXED = 14
-_FIXED = {SD1: 6, SD3: 14}
+#: Telegram length by start delimiter, where it is fixed (SD2's is in its header).
+_FIXED = {SD1: 6, SD3: 14, SD4: 3, SC: 1}
+
+#: Synchronisation time T_SYN: idle bit times before a telegram may start (IEC 61158-4-3).
+TSYN_BITS = 33
+#: Bits of one UART character on the line: start, 8 data, even parity, stop.
+CHAR_BITS = 11
 
 
 def fcs(data: bytes | bytearray | memoryview) -> int:
@@ -147,70 +148,79 @@ Event = Telegram | LineError
 
 
 class FdlParser:
-    """Feed bytes from the line; get telegrams (SD1/SD2/SD3) and :class:`LineError` events.
+    """Feed chunks from the line; get telegrams (SD1/SD2/SD3) and :class:`LineError` events.
 
-    Tokens (SD4) and short acknowledges (SC) of other stations are skipped like noise: a slave acts on
-    neither.
+    ``feed(data, idle=True)`` says the line was idle (at least T_SYN) before ``data``: a telegram
+    begun earlier is dropped as cut off, and the receiver is in step again. ``idle=False``: ``data``
+    continues the previous chunk. After an error every byte is dropped (counted in :attr:`dropped`)
+    until the next idle line. Tokens (SD4) and short acknowledges (SC) of other stations are passed
+    over: a slave acts on neither.
     """
 
     def __init__(self) -> None:
         self._buf = bytearray()
+        self._in_step = True
         self.telegrams = 0
         self.errors = 0
+        self.dropped = 0        # bytes dropped while out of step (after an error, before an idle line)
 
     @property
     def pending(self) -> int:
         """Bytes of a telegram begun but not complete."""
         return len(self._buf)
 
-    def reset(self) -> None:
-        self._buf.clear()
+    @property
+    def in_step(self) -> bool:
+        """False from an error until the line goes idle."""
+        return self._in_step
 
-    def feed(self, data: bytes) -> list[Event]:
+    def reset(self) -> None:
+        """Forget a telegram begun (the caller changed the line, e.g. its baud rate)."""
+        self._buf.clear()
+        self._in_step = True
+
+    def feed(self, data: bytes, *, idle: bool = False) -> list[Event]:
+        out: list[Event] = []
+        if idle:
+            if self._buf:
+                out.append(self._error("cut off by an idle line", len(self._buf)))
+                self._buf.clear()
+            self._in_step = True
+        if not self._in_step:
+            self.dropped += len(data)
+            return out
         buf = self._buf
         buf += data
-        out: list[Event] = []
         i = 0
         n = len(buf)
         while i < n:
             sd = buf[i]
             size = _FIXED.get(sd)
-            if size is None and sd != SD2:
-                i = self._resync(out, i - 1, "no start delimiter")
-                continue
-            if sd == SD2:
+            if size is None:
+                if sd != SD2:
+                    return self._lose(out, i, "no start delimiter")
                 if n - i < 4:
                     break
                 le = buf[i + 1]
                 if buf[i + 2] != le or buf[i + 3] != SD2 or not 4 <= le <= MAX_LE:
-                    i = self._resync(out, i, "bad SD2 header")
-                    continue
+                    return self._lose(out, i, "bad SD2 header")
                 size = le + 6
-            assert size is not None
             if n - i < size:
                 break
             end = i + size
-            if buf[end - 1] != ED:
-                if sd == SD2:    # four header bytes agreed: the receiver counted the telegram off whole
-                    out.append(self._error("bad end delimiter", size))
-                    i = end
-                else:
-                    i = self._resync(out, i, "bad end delimiter")
+            if sd in (SD4, SC):         # another station's token or acknowledge
+                i = end
                 continue
+            if buf[end - 1] != ED:
+                return self._lose(out, i, "bad end delimiter")
             body_start = i + 4 if sd == SD2 else i + 1
             if fcs(memoryview(buf)[body_start:end - 2]) != buf[end - 2]:
-                if sd == SD2:    # the header held: skip the whole telegram
-                    out.append(self._error("bad FCS", size))
-                    i = end
-                else:
-                    i = self._resync(out, i, "bad FCS")
-                continue
+                return self._lose(out, i, "bad FCS")
             tel = _telegram(sd, bytes(buf[body_start:end - 2]))
             if tel is None:
-                out.append(self._error("bad address extension", size))
-            else:
-                self.telegrams += 1
-                out.append(tel)
+                return self._lose(out, i, "bad address extension")
+            self.telegrams += 1
+            out.append(tel)
             i = end
         del buf[:i]
         return out
@@ -219,17 +229,12 @@ class FdlParser:
         self.errors += 1
         return LineError(reason, skipped)
 
-    def _resync(self, out: list[Event], i: int, reason: str) -> int:
-        """Drop from ``i + 1`` to where a telegram can start; a tail too short to tell is kept."""
-        buf = self._buf
-        m = _PLAUSIBLE.search(buf, i + 1)
-        if m is not None:
-            j = m.start()
-        else:
-            tail = _START.search(buf, max(i + 1, len(buf) - _LONGEST_FIXED))
-            j = tail.start() if tail else len(buf)
-        out.append(self._error(reason, j - i))
-        return j
+    def _lose(self, out: list[Event], i: int, reason: str) -> list[Event]:
+        """An error at ``i``: the rest is dropped, and so is all that follows until an idle line."""
+        out.append(self._error(reason, len(self._buf) - i))
+        self._buf.clear()
+        self._in_step = False
+        return out
 
 
 def _telegram(sd: int, body: bytes) -> Telegram | None:

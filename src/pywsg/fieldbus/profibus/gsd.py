@@ -19,6 +19,7 @@ _BAUD_KEYS = {
     1500000: "1.5M", 3000000: "3M", 6000000: "6M", 12000000: "12M",
 }
 _LINE = re.compile(r'^\s*([A-Za-z0-9_.]+(?:\(\d+\))?)\s*=\s*(.*?)\s*$')
+_TEXTS = ("Vendor_Name", "Model_Name", "Implementation_Type", "Hardware_Release", "Software_Release")
 _MODULE = re.compile(r'^\s*Module\s*=\s*"([^"]*)"\s*(.*?)\s*$')
 
 
@@ -36,6 +37,11 @@ class GsdFacts:
     """Baud rate → MaxTsdr in bit times."""
     max_diag_len: int
     user_prm_len: int
+    vendor_name: str = ""
+    model_name: str = ""
+    implementation_type: str = ""
+    hardware_release: str = ""
+    software_release: str = ""
 
     def max_tsdr_s(self, baudrate: int) -> float:
         """MaxTsdr at ``baudrate`` in seconds."""
@@ -46,6 +52,11 @@ def gsd_text() -> str:
     """The packaged GSD file's text (ISO 8859-1, as GSD files are)."""
     ref = resources.files("pywsg.fieldbus") / "descriptions" / GSD_NAME
     return ref.read_bytes().decode("latin-1")
+
+
+def baud_key(baudrate: int) -> str:
+    """The GSD's name for a baud rate: 45450 → ``45.45`` (as in ``45.45_supp``, ``MaxTsdr_45.45``)."""
+    return _BAUD_KEYS[baudrate]
 
 
 def parse_facts(text: str) -> GsdFacts:
@@ -74,6 +85,7 @@ def parse_facts(text: str) -> GsdFacts:
         max_tsdr=tsdr,
         max_diag_len=int(fields.get("Max_Diag_Data_Len", "6"), 0),
         user_prm_len=int(fields.get("User_Prm_Data_Len", "0"), 0),
+        **{key.lower(): fields.get(key, '""').strip('"') for key in _TEXTS},
     )
 
 

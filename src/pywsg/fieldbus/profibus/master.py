@@ -75,6 +75,17 @@ class ProfibusUrl:
         return f"profibus://{self.port}?address={self.address}&baudrate={self.baudrate}"
 
 
+def offline_note(url: str) -> str:
+    """What happens to the slave when this master goes offline (stops polling, as a DP master leaving
+    Operate for Offline does): its watchdog expires and the gripper goes fail-safe."""
+    u = ProfibusUrl.parse(url)
+    if not u.watchdog_ms:
+        return (f"PROFIBUS master offline: slave {u.address} has no watchdog (watchdog_ms=0), "
+                "it keeps the last outputs")
+    return (f"PROFIBUS master offline: slave {u.address}'s watchdog puts the gripper in fail-safe after "
+            f"{u.watchdog_ms} ms (FAST STOP, outputs zero); the next master acknowledges it with STOP/ACK")
+
+
 _pb_log = logging.getLogger("pywsg.fieldbus.profibus.pyprofibus")
 
 
@@ -232,7 +243,8 @@ class ProfibusExchange:
             await asyncio.sleep(0.0005)
 
     async def close(self) -> None:
-        """Stop the master thread and close the port."""
+        """Go offline as a DP master does: stop polling and close the port. The slave's watchdog
+        (``watchdog_ms``) then expires and the gripper goes fail-safe (:func:`offline_note`)."""
         self._stop.set()
         if self._thread.is_alive():
             await asyncio.to_thread(self._thread.join, 2.0)

@@ -1,9 +1,13 @@
-"""Where the PROFIBUS station address persists: ``profibus_address`` of Settings → Command Interface.
+"""Where the PROFIBUS station address persists: ``profibus_address`` of Settings → Command Interface,
+with ``profibus_address_locked``, the "no further address change" (No_Add_Chg) a Set_Slave_Address
+may set.
 
 The web page keeps its values in ``settings.interface.json`` beside the settings file
 (:func:`pywsg.web.interface_page.store_path`); the slave reads its address from there at start and a
 Set_Slave_Address telegram writes it back, so the address survives a restart as on a real WSG
-(002 §2.1.2: "predefined to 7 … can be changed"). Without a settings file it lasts until the sim stops.
+(002 §2.1.2: "predefined to 7 … can be changed"), and so does No_Add_Chg: a slave told to accept no
+further address change refuses the next Set_Slave_Address after a restart too. Without a settings
+file both last until the sim stops.
 No web import here: the core install has no FastAPI.
 """
 
@@ -29,6 +33,7 @@ class AddressStore:
     def __init__(self, path: Path | None) -> None:
         self.path = path
         self.address = DEFAULT_STATION_ADDRESS
+        self.locked = False
 
     @classmethod
     def beside(cls, settings_path: Path | str | None) -> AddressStore:
@@ -49,8 +54,11 @@ class AddressStore:
         return data if isinstance(data, dict) else {}
 
     def load(self) -> int:
-        """The stored station address, or 7 when none (or an invalid one) is stored."""
-        value = self._read().get("profibus_address", DEFAULT_STATION_ADDRESS)
+        """The stored station address, or 7 when none (or an invalid one) is stored; :attr:`locked`
+        is read with it."""
+        data = self._read()
+        self.locked = data.get("profibus_address_locked") is True
+        value = data.get("profibus_address", DEFAULT_STATION_ADDRESS)
         if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_STATION:
             log.warning("PROFIBUS: stored station address %r is not 0..%d; using %d", value, MAX_STATION,
                         DEFAULT_STATION_ADDRESS)
@@ -58,13 +66,14 @@ class AddressStore:
         self.address = value
         return value
 
-    def save(self, address: int) -> None:
-        """Store ``address`` (atomic rewrite; the file's other fields are kept)."""
-        self.address = address
+    def save(self, address: int, locked: bool = False) -> None:
+        """Store ``address`` and its No_Add_Chg (atomic rewrite; the file's other fields are kept)."""
+        self.address, self.locked = address, locked
         if self.path is None:
             return
         data = self._read()
         data["profibus_address"] = address
+        data["profibus_address_locked"] = locked
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=self.path.name, suffix=".tmp")
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as f:

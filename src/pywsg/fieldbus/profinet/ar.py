@@ -18,10 +18,14 @@ import time
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from . import blocks as b
 from . import diagnosis as dg
 from . import rpc
+from .im import Identity as Identity  # re-exported: ConnectionManager takes one
+from .im import IMRecords
+from .pdev import PDevRecords
 from .refusals import RefusalLog
 from .station import Station
 
@@ -33,7 +37,7 @@ WSG_MODULE, WSG_SUBMODULE = 0x00000010, 0x00000011
 INPUT_LENGTH, OUTPUT_LENGTH = 12, 8
 #: Shortest cycle the device accepts, in 31.25 µs units (GSDML MinDeviceInterval; docs/benchmarks.md).
 MIN_DEVICE_INTERVAL = 64
-IM0, IM0_FILTER, REAL_IDENTIFICATION, WRITE_MULTIPLE = 0xAFF0, 0xF840, 0xF000, 0xE040
+WRITE_MULTIPLE = 0xE040
 
 NO_RECORD = b.RecordRequest(0, uuid.UUID(int=0), 0, 0, 0, 0, 0)
 # PNIOStatus: ErrorCode (DBh connect, DCh release, DDh control, DEh read, DFh write), ErrorDecode, code1, code2
@@ -73,44 +77,6 @@ REAL = (Submodule(0, 1, DAP_MODULE, DAP_SUBMODULE), Submodule(0, 0x8000, DAP_MOD
         Submodule(0, 0x8001, DAP_MODULE, PORT_SUBMODULE),
         Submodule(1, 1, WSG_MODULE, WSG_SUBMODULE, INPUT_LENGTH, OUTPUT_LENGTH))
 REAL_BY_ADDR = {(s.slot, s.subslot): s for s in REAL}
-
-
-@dataclass(frozen=True)
-class Identity:
-    """I&M0 values (IEC 61158-6-10 I&M0 record, AFF0h)."""
-
-    order_id: str
-    serial_number: str
-    hardware_revision: int = 1
-    software_revision: tuple[str, int, int, int] = ("V", 4, 0, 0)
-    revision_counter: int = 0
-
-
-def im0(station: Station, ident: Identity) -> bytes:
-    sw = ident.software_revision
-    body = (struct.pack("!H", station.vendor_id) + ident.order_id.encode("ascii")[:20].ljust(20)
-            + ident.serial_number.encode("ascii")[:16].ljust(16)
-            + struct.pack("!H", ident.hardware_revision) + sw[0].encode("ascii")[:1] + bytes(sw[1:])
-            + struct.pack("!HHHBBH", ident.revision_counter, 0, 0x0004, 1, 1, 0))
-    return b.header(0x0020, body)
-
-
-def real_identification() -> bytes:
-    """RealIdentificationData (F000h), block version 1.1: per API the slots and their subslots."""
-    slots: dict[int, list[Submodule]] = {}
-    for s in REAL:
-        slots.setdefault(s.slot, []).append(s)
-    body = struct.pack("!HIH", 1, API, len(slots))
-    for slot, subs in slots.items():
-        body += struct.pack("!HIH", slot, subs[0].module_ident, len(subs))
-        body += b"".join(struct.pack("!HI", s.subslot, s.submodule_ident) for s in subs)
-    return b.header(0x0013, body, (1, 1))
-
-
-def im0_filter() -> bytes:
-    """I&M0FilterData (F840h): the submodules that carry I&M0 (only the device access point's)."""
-    body = struct.pack("!HIHHIHHI", 1, API, 1, 0, DAP_MODULE, 1, 1, DAP_SUBMODULE)
-    return b.header(0x0030, body)
 
 
 class ARState(enum.Enum):
@@ -155,6 +121,38 @@ class AR:
         return (1, 1) in self.proper
 
 
+class RecordHandler(Protocol):
+    """Owner of some records (:mod:`.im`, :mod:`.pdev`): ``read`` gives the record or None (not mine),
+    ``write`` 0, a PNIORW ErrorCode1, or None (not mine). ``ar``: the request's AR, if any;
+    ``real``: the address is a real submodule."""
+
+    def read(self, req: b.RecordRequest, ar: AR | None, real: bool) -> bytes | None: ...
+
+    def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None: ...
+
+
+class DiagnosisRecords:
+    """The diagnosis records (800Ah … F80Ch, :mod:`.diagnosis`): the WSG submodule's active channel
+    diagnosis from 002 §3.3's error flags in ``sysstate()`` (SYSSTATE now). A :class:`RecordHandler`."""
+
+    def __init__(self, sysstate: Callable[[], int]) -> None:
+        self.sysstate = sysstate
+
+    def read(self, req: b.RecordRequest, ar: AR | None, real: bool) -> bytes | None:
+        if req.index not in dg.RECORDS:
+            return None
+        if req.index in dg.SUBSLOT_RECORDS + dg.SLOT_RECORDS and not real:
+            return None
+        if req.index in dg.AR_RECORDS and (ar is None or (ar.is_io and not ar.wsg_ok)):
+            return None if ar is None else b""
+        if not dg.covers_wsg(req.index, req.slot, req.subslot):
+            return b""
+        return dg.diagnosis_data(API, self.sysstate())
+
+    def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None:
+        return None   # read only: the index is refused as invalid
+
+
 @dataclass
 class Listener:
     """What the device does on AR events (set by :class:`pywsg.fieldbus.profinet.device.ProfinetDevice`)."""
@@ -178,20 +176,16 @@ class ConnectionManager:
         self.refused = 0   # Connect requests refused (for the Fieldbus Monitor)
         self._next_frame_id = 0xC100
         self.alarm_ref = 0x0001   # our LocalAlarmReference in every AlarmCRBlockRes
+        # who answers which record (asked in order; each returns None for an index not its own)
+        self.im = IMRecords(station, identity, dap_module=DAP_MODULE, dap_submodule=DAP_SUBMODULE)
+        self.pdev = PDevRecords(station, REAL)
+        self.records: list[RecordHandler] = [self.im, self.pdev]
         # last replies by (activity, seqnum): a retransmitted request gets the same answer, not a second action
         self._replies: dict[tuple[uuid.UUID, int], bytes] = {}
         self.refusals = RefusalLog(log)
         #: SYSSTATE now (the device sets it): the diagnosis records' source.
         self.sysstate: Callable[[], int] = lambda: 0
-        #: Record index → reader (the request, the AR it came in or None) → the record, or None: no such record
-        #: there. One entry per index, so records added elsewhere merge as one line each.
-        self.readers: dict[int, Callable[[b.RecordRequest, AR | None], bytes | None]] = {
-            REAL_IDENTIFICATION: lambda req, ar: real_identification(),
-            IM0_FILTER: lambda req, ar: im0_filter(),
-            IM0: lambda req, ar: im0(self.station, self.identity) if (req.slot, req.subslot) in REAL_BY_ADDR
-            else None,
-            **dict.fromkeys(dg.RECORDS, self._diagnosis_record),
-        }
+        self.records.append(DiagnosisRecords(lambda: self.sysstate()))
 
     def _refused(self, op: str, why: str) -> None:
         self.refusals.warn("PROFINET: %s refused: %s", op, why)
@@ -410,7 +404,7 @@ class ConnectionManager:
             if ar is None:
                 return pnio_status(READ_ERR, PNIO, 0x40, CMRPC_AR_UUID_UNKNOWN), b""
             ar.last_activity = time.monotonic()
-        data = self.record(req, ar)
+        data = self.record(req)
         if data is None:
             code = RW_INVALID_SLOT if (req.slot, req.subslot) not in REAL_BY_ADDR and req.index < 0xE000 \
                 else RW_INVALID_INDEX
@@ -422,22 +416,16 @@ class ConnectionManager:
             return pnio_status(READ_ERR, PNIORW, RW_INVALID_RANGE, 0), b""
         return OK, b.read_response(req, data)
 
-    def record(self, req: b.RecordRequest, ar: AR | None = None) -> bytes | None:
+    def record(self, req: b.RecordRequest) -> bytes | None:
         """The record a Read asks for, or None (invalid index or slot)."""
         if req.api != API:
             return None
-        reader = self.readers.get(req.index)
-        return None if reader is None else reader(req, ar)
-
-    def _diagnosis_record(self, req: b.RecordRequest, ar: AR | None) -> bytes | None:
-        """Diagnosis records (800Ah … F80Ch): the WSG submodule's active channel diagnosis (002 §3.3 flags)."""
-        if req.index in dg.SUBSLOT_RECORDS + dg.SLOT_RECORDS and (req.slot, req.subslot) not in REAL_BY_ADDR:
-            return None
-        if req.index in dg.AR_RECORDS and (ar is None or (ar.is_io and not ar.wsg_ok)):
-            return None if ar is None else b""
-        if not dg.covers_wsg(req.index, req.slot, req.subslot):
-            return b""
-        return dg.diagnosis_data(API, self.sysstate())
+        ar, real = self._find(req.ar_uuid), (req.slot, req.subslot) in REAL_BY_ADDR
+        for handler in self.records:
+            data = handler.read(req, ar, real)
+            if data is not None:
+                return data
+        return None
 
     def _write(self, args: bytes) -> tuple[int, bytes]:
         it = b.split(args)
@@ -483,10 +471,10 @@ class ConnectionManager:
             status = self.listener.write_record(req, data)
             if status >= 0:
                 return status
-        if req.slot == 0 and req.subslot in (0x8000, 0x8001) and 0x8000 <= req.index <= 0x8FFF:
-            # PDev records (port data check, interface adjust) from an engineering tool: accepted, not
-            # applied — the sim has no physical port to check (docs/fidelity.md).
-            return OK
+        for handler in self.records:
+            code1 = handler.write(req, self._find(req.ar_uuid), data)
+            if code1 is not None:
+                return OK if code1 == 0 else pnio_status(WRITE_ERR, PNIORW, code1, 0)
         return pnio_status(WRITE_ERR, PNIORW, RW_INVALID_INDEX, 0)
 
     # --- CControl: ApplicationReady ----------------------------------------------------------------

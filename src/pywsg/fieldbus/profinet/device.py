@@ -29,14 +29,16 @@ from typing import Any
 
 from ..controller import FieldbusController
 from ..image import OutputImage
+from . import lldp
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
-from .ar import AR, ARState, ConnectionManager, Identity, Listener
+from .ar import AR, ARState, ConnectionManager, Listener
 from .cyclic import CyclicThread, attach_filter
 from .dcp import IN_OPERATION, OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
+from .im import Identity, IMData
 from .rpc import RPC_PORT
 from .rt import SUBSTITUTE, CyclicCodec, OutputConsumer
-from .station import NO_IP, IpSuite, PermanentStore, Station
+from .station import NO_IP, ORDER_ID, IpSuite, PermanentStore, Station
 
 log = logging.getLogger(__name__)
 
@@ -96,7 +98,7 @@ def interface_ipv4(iface: str) -> str | None:
 
 def _identity(gripper: Any) -> Identity:
     profile = getattr(gripper, "profile", None)
-    name = str(getattr(profile, "name", "WSG 50"))
+    name = str(getattr(profile, "name", ORDER_ID))
     serial = str(getattr(gripper, "serial_number", "") or "")
     fw = int(getattr(profile, "fw_version", 0x4000) or 0x4000)
     return Identity(order_id=name, serial_number=serial,
@@ -123,6 +125,10 @@ class ProfinetDevice:
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
         self.cm.sysstate = lambda: int.from_bytes(self.controller.input_bytes()[2:6], "little")
+        # I&M1-4 as the settings file keeps them; a write stores them there again
+        self.cm.im.data = IMData.load(self.store.data, save=lambda changed: self.store.save(**changed))
+        self.port = self.cm.pdev.port
+        self._lldp: asyncio.TimerHandle | None = None
         self.codec: CyclicCodec | None = None
         self.alarms: AlarmChannel | None = None
         self.sock: socket.socket | None = None
@@ -151,6 +157,7 @@ class ProfinetDevice:
         attach_filter(self.sock, cyclic=False)   # the cyclic frames are the cyclic thread's (cyclic.py)
         self._loop.add_reader(self.sock.fileno(), self._readable)
         self._house = self._loop.call_later(1.0, self._housekeeping)
+        self._send_lldp()
         attach = getattr(self.controller, "attach_bus", None)
         if attach is not None:
             attach(self)
@@ -183,6 +190,10 @@ class ProfinetDevice:
             self._app_ready_timer.cancel()
         if self._house is not None:
             self._house.cancel()
+        if self._lldp is not None:
+            self._lldp.cancel()
+            if self.port.lldp_send:   # TTL 0: the neighbour forgets us at once (IEEE 802.1AB shutdown)
+                self._send(self._lldp_frame(ttl=0))
         if self.sock is not None:
             if self._loop is not None:
                 self._loop.remove_reader(self.sock.fileno())
@@ -220,6 +231,11 @@ class ProfinetDevice:
             rows["Last AR end"] = self.last_abort
         if time.monotonic() < self._signal_until:
             rows["Signal"] = "flashing (DCP Signal)"
+        n = self.port.current(time.monotonic())
+        rows["LLDP neighbour"] = f"{n.peer_station_name} {n.peer_port_name} ({mac_text(n.mac)})" if n else "(none)"
+        mismatch = self.port.mismatch(time.monotonic())
+        if mismatch:
+            rows["Port check"] = f"mismatch: {mismatch}"
         return rows
 
     # --- receive --------------------------------------------------------------------------------
@@ -265,6 +281,17 @@ class ProfinetDevice:
                             self._send(reply)
                 elif self.rt is None:   # a device not started (tests): the loop takes the frame itself
                     self._output_frame(frame.payload)
+            return
+        if frame.ethertype == lldp.ETH_P_LLDP:
+            if frame.dst != lldp.LLDP_MULTICAST:
+                return   # LLDP goes to the nearest-bridge address only
+            neighbour = lldp.parse(frame, time.monotonic())
+            if neighbour is not None and neighbour != self.port.neighbour:
+                if self.port.neighbour is None or (neighbour.chassis_id, neighbour.port_id) != (
+                        self.port.neighbour.chassis_id, self.port.neighbour.port_id):
+                    log.info("PROFINET: LLDP neighbour %s port %s (%s)", neighbour.chassis_id, neighbour.port_id,
+                             mac_text(neighbour.mac))
+                self.port.neighbour = neighbour
             return
         if frame.ethertype in (ETH_P_IP, 0x0806):
             replies, udp = self.ipstack.handle(frame)
@@ -335,6 +362,23 @@ class ProfinetDevice:
         except OSError as exc:
             log.warning("PROFINET: send on %s: %s", self.iface, exc.strerror or exc)
 
+    # --- LLDP ------------------------------------------------------------------------------------------
+    def _lldp_frame(self, ttl: int = lldp.TTL_S) -> bytes:
+        return lldp.build(self.station.mac, self.station.name, self.ipstack.ip if self.ipstack.has_ip else NO_IP,
+                          name_of_device=self.port.name_of_device, ttl=ttl)
+
+    def _announce(self) -> None:
+        """A new name or IP: the neighbour learns it now, not at the next interval."""
+        if self.port.lldp_send:
+            self._send(self._lldp_frame())
+
+    def _send_lldp(self) -> None:
+        """Our LLDP frame now and every TX_INTERVAL_S (not while a PeerToPeerBoundary forbids it)."""
+        if self.port.lldp_send:
+            self._send(self._lldp_frame())
+        if self._loop is not None and self.sock is not None:
+            self._lldp = self._loop.call_later(lldp.TX_INTERVAL_S, self._send_lldp)
+
     # --- web interface (Settings → Command Interface, 003 §3.2) ------------------------------------------
     def apply_settings(self, name: str | None = None, ip: IpSuite | None = None) -> None:
         """New NameOfStation and/or IP suite from the web interface (already stored by it). An AR in
@@ -349,6 +393,7 @@ class ProfinetDevice:
         if ip is not None:
             self.station.ip = ip
             self.ipstack.ip = ip.ip
+        self._announce()
         self._syslog(f"PROFINET: web interface set station '{self.station.name}', IP {self.station.ip.ip}")
 
     # --- DCP Set ----------------------------------------------------------------------------------
@@ -365,6 +410,7 @@ class ProfinetDevice:
         self.station.name = name
         if permanent:
             self.store.save(profinet_name=name)
+        self._announce()
         self._syslog(f"PROFINET: NameOfStation set to '{name}' ({'permanent' if permanent else 'temporary'})")
         return OK
 
@@ -375,6 +421,7 @@ class ProfinetDevice:
         self.station.ip = suite
         self.ipstack.ip = suite.ip
         self._check_conflict()
+        self._announce()
         if permanent:
             self.store.save(ip_address=suite.ip, netmask=suite.mask,
                             gateway="" if suite.gateway == NO_IP else suite.gateway)
@@ -397,6 +444,7 @@ class ProfinetDevice:
         self.ipstack.ip = NO_IP
         self.store.save(profinet_name="")
         self.store.forget("ip_address", "netmask", "gateway")
+        self._announce()
         self._syslog(f"PROFINET: reset to factory settings (mode {mode}, communication parameters): station name "
                      f"and IP cleared, also in the settings file")
         return OK
@@ -421,6 +469,7 @@ class ProfinetDevice:
         self.consumer = OutputConsumer()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
+        self.cm.pdev.logbook.add(ar.uuid.bytes)
         self._stop_rt()
         if self._loop is not None and self.sock is not None:
             codec, loop = self.codec, self._loop
@@ -481,6 +530,8 @@ class ProfinetDevice:
                 self._tick = None
         self.last_abort = why
         if ar.is_io:
+            # LogBook: a release is no error; any other end is an abort (PNIOStatus CF 81 FD 00: "AR aborted")
+            self.cm.pdev.logbook.add(ar.uuid.bytes, 0 if why == "released by the controller" else 0xCF81FD00)
             self._syslog(f"PROFINET: AR of {ar.controller_ip} ended: {why}")
             if why != "released by the controller":
                 self._fail_safe(why)

@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 WSG_SLOT, WSG_SUBSLOT = 1, 1
 DEFAULT_CYCLE_MS = 16
 HOLD_MS = 200
-GSDML_NAME = "GSDML-V2.31-WeissRobotics-WSG-20140401.xml"
+GSDML_NAME = "GSDML-V2.31-Weiss Robotics-WSG-20140401.gsdml"   # 003 §3.1
 
 
 class ProfinetUnavailable(FieldbusConnectionError):

@@ -25,7 +25,9 @@ VENDOR_ID = 0x02A2
 DEVICE_ID = 0x0001
 #: DCP TypeOfStation (DeviceVendorValue) and the GSDML's family name.
 TYPE_OF_STATION = "WSG"
-ORDER_ID = "WSG-PN"
+#: I&M0 OrderID of the default model: the model name the web interface shows ("WSG 50 Control Panel"),
+#: also the GSDML's OrderNumber; another model profile reports its own name (docs/fieldbus.md).
+ORDER_ID = "WSG 50"
 NO_IP = "0.0.0.0"  # nosec B104: PROFINET's "no IP address"
 
 _LABEL = re.compile(r"^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$")

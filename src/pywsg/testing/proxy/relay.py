@@ -1,28 +1,7 @@
-"""A transparent tap between any WSG client and any WSG (real or virtual): ``wsg proxy``.
+"""The relaying side of ``wsg proxy``: the :class:`Proxy`, its TCP pipes and its UDP sockets.
 
-Bytes are forwarded unchanged and in order the moment they arrive (forwarding comes first, decoding
-after), so the client and the gripper cannot tell the tap is there. Each complete frame is handed to
-a :class:`~pywsg.capture.commlog.CommLog` (one decoded line per frame: time, TX/RX, command, status,
-fields) and can be written to a pcapng file (readable by ``wsg decode -f``, ``wsg replay`` and
-Wireshark) as synthetic IPv4 packets between the client's and the gripper's real addresses.
-
-TCP: every client connection gets its own connection to the gripper (the gripper sees one client
-per proxied client, as the command manual's single-client rule expects). A half-close passes
-through both ways, and replies still in flight when a client goes are still captured (the gripper
-side is kept :data:`CLOSE_GRACE_S` for them). UDP: datagrams from each client address go out from a
-socket of their own (at most :data:`UDP_UPSTREAMS`, each closed after ``udp_idle`` s without
-traffic); the gripper's replies go back to that client address. For a gripper that replies to a
-fixed port (factory setting 1501) give ``?reply_port=1501`` in the target URL: one upstream socket
-bound to that local port carries every client's datagrams, and a reply goes to the client whose
-request with that command ID is the oldest unanswered one (else to the last client heard).
-
-Bounds, like the sim's (docs/sim.md "Bounds"): at most :data:`HIGH_WATER` bytes wait to be sent to
-either side before reading from the other pauses (backpressure both ways); decoding runs in chunks
-on a task of its own (other clients never wait for a flood to be decoded), and reading pauses while
-:data:`DECODE_BACKLOG` bytes wait for it. The capture is streamed to disk; the comm log gets at most
-``log_rate`` frames a second (a line each second says what was left out; the pcapng has every byte),
-and stream problems (bad checksums, garbage) are one summary note per chunk, so logging costs a
-small factor of the traffic whatever it is sent.
+Bytes are forwarded the moment they arrive; the pcapng gets them next and the decoders
+(:mod:`.decode`) last. Network faults (:mod:`pywsg.server.netfault`) act after the tap.
 """
 
 from __future__ import annotations
@@ -33,221 +12,26 @@ import contextlib
 import socket
 import struct
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, cast
 
-from ..capture.commlog import CommLog, TxRx
-from ..capture.pcap import PcapWriter
-from ..client.url import parse_url
-from ..protocol import ChecksumMismatch, Frame, FrameParser, GarbageSkipped
-from ..protocol.parser import Tally, parse_datagram
-from ..server.netfault import NetFaults, Shaper
+from ...capture.commlog import CommLog
+from ...capture.pcap import PcapWriter
+from ...client.url import parse_url
+from ...server.netfault import NetFaults, Shaper
+from .capture import LogGate, ProxyStats
+from .decode import Decoder
 
-__all__ = ["PcapWriter", "Proxy", "ProxyStats"]
+__all__ = ["CLOSE_GRACE_S", "HIGH_WATER", "UDP_UPSTREAMS", "Proxy"]
 
 Transport = Literal["tcp", "udp"]
 
 HIGH_WATER = 64 * 1024
 """Bytes buffered toward one side at which reading from the other side pauses."""
-DECODE_BACKLOG = 1024 * 1024
-"""Bytes waiting to be decoded at which reading from that side pauses."""
-DECODE_CHUNK = 8 * 1024
-"""Bytes decoded per turn of the event loop while the log shows no frames (over ``log_rate``): counted
-in bulk (:meth:`~pywsg.protocol.FrameParser.tally`), about 0.1 ms per turn."""
-LOG_CHUNK = 256
-"""Bytes decoded per turn of the event loop while frames are shown: each shown frame is decoded and
-formatted (tens of µs), so a turn stays about a millisecond. A turn that showed next to nothing
-(stray bytes, long frames) doubles the next one, up to :data:`LOG_CHUNK_MAX`."""
-LOG_CHUNK_MAX = 2048
-"""Bytes decoded per turn at most while frames are shown (at most 256 small frames, ~10 ms)."""
 CLOSE_GRACE_S = 2.0
 """How long the gripper side stays open for replies in flight after its client has gone (s)."""
 UDP_UPSTREAMS = 256
 """Upstream UDP sockets (one per client address) at most; the least recently used one goes first."""
-@dataclass
-class ProxyStats:
-    """Counters of one proxy run."""
-
-    connections: int = 0
-    frames: dict[str, int] = field(default_factory=lambda: {"tx": 0, "rx": 0})
-    bytes: dict[str, int] = field(default_factory=lambda: {"tx": 0, "rx": 0})
-    not_logged: int = 0  # frames over the log rate (in the pcapng, not in the comm log)
-
-
-class _LogGate:
-    """At most ``rate`` comm-log entries a second for the whole proxy; what is left out is one line a
-    second per direction (``0``: no limit). ``captured``: a pcapng file gets every byte (the line
-    says so)."""
-
-    def __init__(self, log: CommLog | None, rate: int, stats: ProxyStats, captured: bool = False) -> None:
-        self.log = log
-        self.rate = rate
-        self.stats = stats
-        self.captured = captured
-        self.window = 0.0
-        self.used = 0
-        self.skipped: dict[TxRx, collections.Counter[str]] = {"tx": collections.Counter(),
-                                                             "rx": collections.Counter()}
-
-    def full(self) -> bool:
-        """No entry would be shown now: no log, or this second's ``rate`` is spent."""
-        if self.log is None:
-            return True
-        if not self.rate:
-            return False
-        self.roll()
-        return self.used >= self.rate
-
-    def roll(self) -> None:
-        """Start a new second once the last one has ended (writing its 'not logged' lines)."""
-        now = time.monotonic()
-        if now - self.window >= 1.0:
-            self.summary()
-            self.window, self.used = now, 0
-
-    def skip(self, direction: TxRx, what: str, n: int = 1) -> None:
-        """``n`` frames of kind ``what`` left out (counted for the next 'not logged' line)."""
-        if self.log is not None and n:
-            self.skipped[direction][what] += n
-            self.stats.not_logged += n
-
-    def allow(self, direction: TxRx, what: str, n: int = 1) -> bool:
-        """One entry may be shown now (it uses one of this second's ``rate``); if not, the ``n`` frames
-        it stands for (of kind ``what``) are counted as left out."""
-        if self.full():
-            self.skip(direction, what, n)
-            return False
-        self.used += 1
-        return True
-
-    def summary(self) -> None:
-        """Write the 'not logged' lines for the window just ended."""
-        if self.log is None:
-            return
-        where = "; the pcapng has them" if self.captured else ""
-        for direction, counts in self.skipped.items():
-            if counts:
-                total = sum(counts.values())
-                top = ", ".join(f"{k} x{n}" for k, n in counts.most_common(4))
-                self.log.note(direction, f"{total} frame(s) not logged (over {self.rate}/s{where}): {top}")
-                counts.clear()
-
-
-class _Decoder:
-    """Frames out of one direction of one connection, into the comm log.
-
-    Decodes on a task of its own, :data:`DECODE_CHUNK` bytes per loop turn, so a flood never holds up
-    the loop; ``hold(True)`` is called while :data:`DECODE_BACKLOG` bytes wait (the caller pauses
-    reading), ``hold(False)`` once half of it is done.
-    """
-
-    def __init__(self, proxy: Proxy, direction: TxRx, hold: Callable[[bool], None] | None = None) -> None:
-        self.parser = FrameParser(verify_checksum=True)
-        self.proxy = proxy
-        self.direction: TxRx = direction
-        self.stats = proxy.stats
-        self.hold = hold
-        self.backlog: collections.deque[tuple[bytes, bool]] = collections.deque()
-        self.waiting = 0
-        self.held = False
-        self.dropped = 0  # datagrams not decoded: the backlog was full (UDP cannot pause)
-        self.task: asyncio.Task[None] | None = None
-        self.step = LOG_CHUNK  # bytes decoded in the next turn while frames are shown
-
-    def feed(self, data: bytes, datagram: bool = False) -> None:
-        self.stats.bytes[self.direction] += len(data)
-        if self.waiting >= DECODE_BACKLOG and self.hold is None:
-            self.dropped += 1
-            return
-        self.backlog.append((data, datagram))
-        self.waiting += len(data)
-        if self.waiting >= DECODE_BACKLOG and self.hold is not None and not self.held:
-            self.held = True
-            self.hold(True)
-        if self.task is None:
-            self.task = asyncio.get_running_loop().create_task(self._run())
-            self.proxy._tasks.add(self.task)
-            self.task.add_done_callback(self.proxy._tasks.discard)
-
-    async def _run(self) -> None:
-        gate = self.proxy.gate
-        try:
-            while self.backlog:
-                data, datagram = self.backlog.popleft()
-                if datagram:
-                    self._events(parse_datagram(data))
-                else:
-                    i = 0
-                    while i < len(data):
-                        if gate.full():  # nothing is shown: count the frames in bulk
-                            part = data[i : i + DECODE_CHUNK]
-                            self._tally(self.parser.tally(part))
-                        else:
-                            part = data[i : i + self.step]
-                            used = gate.used
-                            self._events(self.parser.feed(part))
-                            few = 0 <= gate.used - used <= 2  # (a new second starts at 0: also few)
-                            self.step = min(2 * self.step, LOG_CHUNK_MAX) if few else LOG_CHUNK
-                        i += len(part)
-                        if i < len(data):
-                            await asyncio.sleep(0)
-                self.waiting -= len(data)
-                if self.held and self.waiting <= DECODE_BACKLOG // 2 and self.hold is not None:
-                    self.held = False
-                    self.hold(False)
-                await asyncio.sleep(0)
-        finally:
-            self.task = None
-
-    async def drain(self) -> None:
-        """Wait until everything fed so far is decoded."""
-        while self.task is not None:
-            await asyncio.sleep(0)
-
-    def _tally(self, t: Tally) -> None:
-        """Frames counted in bulk (none of them shown); stream problems as in :meth:`_events`."""
-        direction = self.direction
-        if t.frames:
-            self.stats.frames[direction] += sum(t.frames.values())
-            for cid, n in t.frames.items():
-                self.proxy.gate.skip(direction, f"{cid:02X}h", n)
-        first = ""
-        if t.first_bad is not None:
-            ev = t.first_bad
-            first = f"first {ev.command_id:02X}h: {ev.received:04X}h, expected {ev.expected:04X}h"
-        self._events(t.problems, t.bad, t.garbage, first)
-
-    def _events(self, events: list[Any], bad: int = 0, garbage: int = 0, first: str = "") -> None:
-        """Frames into the log (as the gate allows); stream problems, with ``bad`` checksum failures and
-        ``garbage`` bytes counted before, as one note."""
-        gate, log, direction = self.proxy.gate, self.proxy.log, self.direction
-        other = 0
-        for ev in events:
-            if isinstance(ev, Frame):
-                self.stats.frames[direction] += 1
-                if log is not None and gate.allow(direction, f"{ev.command_id:02X}h"):
-                    log.record(direction, ev)
-            elif isinstance(ev, ChecksumMismatch):
-                bad += 1
-                first = first or (f"first {ev.command_id:02X}h: {ev.received:04X}h, expected {ev.expected:04X}h")
-            elif isinstance(ev, GarbageSkipped):
-                garbage += ev.count
-            else:
-                other += 1
-                first = first or type(ev).__name__
-        # one note for them all; over the rate, the frames with a wrong checksum are counted as left out
-        if (bad or garbage or other) and log is not None and gate.allow(
-                direction, "wrong checksum" if bad else "stream problems", bad or 1):
-            parts = []
-            if bad:
-                parts.append(f"{bad} frame(s) with a wrong checksum")
-            if garbage:
-                parts.append(f"{garbage} byte(s) outside any frame")
-            if other:
-                parts.append(f"{other} other problem(s)")
-            log.note(direction, ", ".join(parts) + (f" ({first})" if first else ""))
 
 
 class _Upstream(asyncio.Protocol):
@@ -280,8 +64,8 @@ class _Pipe(asyncio.Protocol):
         self.proxy = proxy
         self.client: asyncio.Transport | None = None
         self.upstream: asyncio.Transport | None = None
-        self.tx = _Decoder(proxy, "tx", lambda on: self.hold_client("decoding", on))
-        self.rx = _Decoder(proxy, "rx", lambda on: self.hold_upstream("decoding", on))
+        self.tx = Decoder(proxy, "tx", lambda on: self.hold_client("decoding", on))
+        self.rx = Decoder(proxy, "rx", lambda on: self.hold_upstream("decoding", on))
         self.peer: tuple[str, int] = ("0.0.0.0", 0)
         self.closed = False
         self.client_gone = False
@@ -289,9 +73,10 @@ class _Pipe(asyncio.Protocol):
         self.gripper_eofd = False
         self._client_holds: set[str] = {"connecting"}
         self._upstream_holds: set[str] = set()
-        self.shaper = Shaper(proxy.net, self._to_client)
+        self.shaper = Shaper(proxy.net, self._to_client, hold=lambda on: self.hold_upstream("net fault", on))
         """Network faults on the gripper's bytes toward the client (after the tap: the capture has them as sent)."""
         self._net_timer: asyncio.TimerHandle | None = None
+        self._early: list[bytes] = []  # client bytes read before the gripper side was up (Python 3.10)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -305,7 +90,15 @@ class _Pipe(asyncio.Protocol):
         self.proxy._pipes.add(self)
         if self.proxy.net.active:
             self.net_rules()
+            if self.closed:  # reset at once (timeout 0)
+                return
         transport.pause_reading()  # until the gripper side is up
+        # Python 3.10's selector transport adds its reader *after* connection_made (a callback queued
+        # before it), ignoring a pause made here (3.11 checks is_reading() first), and a second
+        # pause_reading() is then a no-op. So on 3.10 the client can be read before the gripper side is
+        # up: data_received keeps it in _early, and this resume/pause pair, queued behind the transport's
+        # own callback, stops reading for real until _connect is done.
+        asyncio.get_running_loop().call_soon(self._repause)
         task = asyncio.get_running_loop().create_task(self._connect())
         self.proxy._tasks.add(task)
         task.add_done_callback(self.proxy._tasks.discard)
@@ -332,7 +125,16 @@ class _Pipe(asyncio.Protocol):
         for reason in list(self._upstream_holds):  # holds taken before it existed
             self._upstream_holds.discard(reason)
             self.hold_upstream(reason, True)
+        early, self._early = self._early, []
+        for data in early:
+            self._forward(data)
         self.hold_client("connecting", False)
+
+    def _repause(self) -> None:
+        c = self.client
+        if self.upstream is None and c is not None and not c.is_closing() and self._client_holds:
+            c.resume_reading()
+            c.pause_reading()
 
     # -- flow control: a set of reasons per side; reading resumes when none is left
     def hold_client(self, reason: str, on: bool) -> None:
@@ -355,6 +157,12 @@ class _Pipe(asyncio.Protocol):
 
     # -- data
     def data_received(self, data: bytes) -> None:
+        if self.upstream is None:  # read before the gripper side was up: only on Python 3.10 (_repause)
+            self._early.append(data)
+            return
+        self._forward(data)
+
+    def _forward(self, data: bytes) -> None:
         assert self.upstream is not None
         net = self.proxy.net
         if not net.active:
@@ -461,7 +269,7 @@ class _UdpUpstream(asyncio.DatagramProtocol):
     def __init__(self, proxy: Proxy, client: tuple[str, int] | None) -> None:
         self.proxy = proxy
         self.client = client
-        self.rx = _Decoder(proxy, "rx")
+        self.rx = Decoder(proxy, "rx")
         self.transport: asyncio.DatagramTransport | None = None
         self.last = time.monotonic()
 
@@ -486,7 +294,7 @@ class _UdpListener(asyncio.DatagramProtocol):
         self.ups: collections.OrderedDict[tuple[str, int], _UdpUpstream] = collections.OrderedDict()
         self.shared: _UdpUpstream | None = None  # fixed reply port: one socket for every client
         self.opening: set[tuple[str, int]] = set()
-        self.tx = _Decoder(proxy, "tx")
+        self.tx = Decoder(proxy, "tx")
         self.pending: dict[tuple[str, int], list[bytes]] = {}
         # fixed reply port: (client, command ID) of requests not yet answered, oldest first
         self.waiting: collections.deque[tuple[tuple[str, int], int]] = collections.deque(maxlen=1024)
@@ -602,7 +410,7 @@ class Proxy:
         self.listen_host, self.listen_port = listen_host, listen_port
         self.log = log
         self.stats = ProxyStats()
-        self.gate = _LogGate(log, log_rate, self.stats, captured=pcap is not None)
+        self.gate = LogGate(log, log_rate, self.stats, captured=pcap is not None)
         self.udp_idle = udp_idle
         self.server_addr = (socket.gethostbyname(self.host), self.port)
         self.pcap = PcapWriter(pcap) if pcap is not None else None
