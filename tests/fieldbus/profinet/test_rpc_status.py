@@ -145,8 +145,9 @@ def test_diagnosis_records_carry_the_active_channel_diagnosis(session: Session) 
 
 @needs_tshark
 def test_wireshark_finds_every_answer_clean(session: Session, tmp_path: Path) -> None:
-    """Runs last in this module: every answer above, decoded by tshark, has no Malformed frame and no
-    Error-level expert info (the device's frames; some requests are malformed on purpose)."""
+    """Every answer in this module's session (the refusals above; its own when it runs alone), decoded by
+    tshark, has no Malformed frame and no Error-level expert info (the device's frames; some requests are
+    malformed on purpose)."""
     ar = session.cm.io_ar
     assert ar is not None
     status, _ = session.call(rpc.OP_CONTROL, control_req(b.PRM_END_REQ, ar.uuid, ar.request.session_key,
@@ -154,6 +155,11 @@ def test_wireshark_finds_every_answer_clean(session: Session, tmp_path: Path) ->
     assert status == 0
     status, _ = session.call(rpc.OP_READ_IMPLICIT, record_req(b.READ_REQ, uuid.UUID(int=0), 0, 1, 0xAFF0, 4096))
     assert status == 0
+    for index in (0xBEEF, 0xBEF0, 0xBEF1, 0xBEF2):   # refused writes (also when this test runs alone)
+        status, _ = session.call(rpc.OP_WRITE, record_req(b.WRITE_REQ, ar.uuid, 1, 1, index, 4) + b"abcd")
+        assert status == 0xDF80B000
+    status, _ = session.call(rpc.OP_READ, record_req(b.READ_REQ, ar.uuid, 0, 1, 0xAFF0, 10))   # too short
+    assert status == 0xDE80B700
     pcap = write_pcap(tmp_path / "rpc.pcap", session.frames)
     assert flagged(pcap, mac_text(MAC)) == []
     answers = counts(pcap, f"eth.src == {mac_text(MAC)} && pn_io.error_code")
