@@ -5,10 +5,11 @@ thread of this process (:class:`pywsg.testing.SimThread`, stock asyncio) and the
 two other threads (one sends, one reads the answers). Printed per attack:
 
 - the sim's loop-thread CPU (s per MiB sent, ``time.thread_time`` on that thread),
-- of which python-can's ``send`` for the reply frames the client received (the same number of sends
-  of the sim's message class on a virtual bus with one receiver, measured here afterwards),
-- the CPU of python-can's ``Notifier`` thread that reads the bus for the sim,
-- the sim's CPU (loop + Notifier) per second of a saturated classic CAN bus at 1 Mbit/s
+- the CPU of the thread that reads the bus for the sim (python-can's ``Notifier``, or since issue 33
+  item 13 the sim's own batch reader), and the sim's total (loop + reader),
+- the baseline: the CPU python-can takes to send the flood (the client's ``bus.send`` of the same CAN
+  frames, in the sending thread of the same run),
+- the sim's CPU (loop + reader) per second of a saturated classic CAN bus at 1 Mbit/s
   (~8,000 8-byte frames a second, so 1 MiB is ~16 s of bus time),
 - the waits of a well-behaved UDP client of the same sim, in a process of its own, sending Loop
   requests back to back during a second run (the client's threads share the sim's GIL: an in-process
@@ -29,7 +30,6 @@ import threading
 import time
 import uuid
 from multiprocessing.connection import Connection
-from typing import Any
 
 import can
 import psutil
@@ -56,15 +56,15 @@ def _thread_cpu(native_id: int) -> float:
     return 0.0
 
 
-def _flood(st: SimThread, channel: str, units: list[bytes]) -> tuple[float, float, int, int]:
-    """Send ``units`` (one CAN frame each) then a marker request; (loop CPU s, Notifier CPU s,
-    reply CAN frames received, answers)."""
+def _flood(st: SimThread, channel: str, units: list[bytes]) -> tuple[float, float, float, int, int]:
+    """Send ``units`` (one CAN frame each) then a marker request; (loop CPU s, reader CPU s,
+    client send CPU s, reply CAN frames received, answers)."""
     marker = Frame(0x06, b"marker!").encode()
     want = Frame.reply(0x06, Status.E_SUCCESS, b"marker!").encode()
     msgs = [can.Message(arbitration_id=0x01, data=u, is_extended_id=False) for u in units]
     msgs += [can.Message(arbitration_id=0x01, data=marker[i : i + 8], is_extended_id=False)
              for i in range(0, len(marker), 8)]
-    notifier = next(t for t in threading.enumerate() if t.name.startswith("Notifier"))
+    notifier = next(t for t in threading.enumerate() if t.name.startswith(("Notifier", "can-reader")))
     bus = can.Bus(interface="virtual", channel=channel)
     got = bytearray()
     frames = 0
@@ -81,41 +81,22 @@ def _flood(st: SimThread, channel: str, units: list[bytes]) -> tuple[float, floa
     time.sleep(0.2)
     loop0, n0 = st.call(time.thread_time), _thread_cpu(notifier.native_id or 0)
     reader.start()
+    send0 = time.thread_time()
     for m in msgs:
         bus.send(m)
+    send = time.thread_time() - send0
     reader.join(300)
     loop1, n1 = st.call(time.thread_time), _thread_cpu(notifier.native_id or 0)
     bus.shutdown()
     answers = sum(1 for e in FrameParser().feed(bytes(got)) if isinstance(e, Frame))
-    return loop1 - loop0, n1 - n0, frames, answers
-
-
-def _send_cost(frames: int) -> float:
-    """CPU s python-can takes to send ``frames`` 8-byte messages of the sim's reply class on a
-    virtual bus with one receiver (its deep copy per receiver included)."""
-    try:
-        from pywsg.server.can_bus import reply_message_class
-        cls: Any = reply_message_class(can)
-    except ImportError:  # the code before issue 23 item 15 sent plain messages
-        cls = can.Message
-    channel = f"cost-{uuid.uuid4().hex[:8]}"
-    tx, rx = can.Bus(interface="virtual", channel=channel), can.Bus(interface="virtual", channel=channel)
-    msg = cls(arbitration_id=0x02, data=bytes(8), is_extended_id=False)
-    t0 = time.thread_time()
-    for _ in range(frames):
-        tx.send(msg)
-    cost = time.thread_time() - t0
-    tx.shutdown()
-    rx.shutdown()
-    return cost
+    return loop1 - loop0, n1 - n0, send, frames, answers
 
 
 def case(name: str, units: list[bytes]) -> None:
     mib = len(units) * 8 / MIB
     channel = f"abuse-{uuid.uuid4().hex[:8]}"
     with SimThread(tcp_port=None, udp_port=None, can_channel=channel) as st:
-        loop_cpu, notifier_cpu, frames, answers = _flood(st, channel, units)
-    send = _send_cost(frames)
+        loop_cpu, notifier_cpu, send, frames, answers = _flood(st, channel, units)
     channel = f"abuse-{uuid.uuid4().hex[:8]}"
     with SimThread(tcp_port=None, udp_port=0, can_channel=channel) as st:
         ctx = multiprocessing.get_context("spawn")
@@ -128,8 +109,9 @@ def case(name: str, units: list[bytes]) -> None:
         p50, p99, worst = mine.recv()
         child.join(10)
     per_bus_s = (loop_cpu + notifier_cpu) / (len(units) / BUS_FRAMES_PER_S)
-    print(f"{name:44s} {loop_cpu / mib:8.3f} {send / mib:8.3f} {notifier_cpu / mib:8.3f} {per_bus_s:8.3f} "
-          f"{p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} {answers:9d}", flush=True)
+    print(f"{name:44s} {loop_cpu / mib:8.3f} {notifier_cpu / mib:8.3f} {(loop_cpu + notifier_cpu) / mib:8.3f} "
+          f"{send / mib:8.3f} {per_bus_s:8.3f} {p50 * 1e3:7.2f} {p99 * 1e3:7.2f} {worst * 1e3:7.1f} "
+          f"{frames:7d} {answers:9d}", flush=True)
 
 
 def main() -> None:
@@ -143,8 +125,9 @@ def main() -> None:
         ("CAN: 8-byte frames with bad CRCs", [bad] * n),
         ("CAN: valid Loop requests (06h, 8 B)", [Frame(0x06).encode()] * n),
     ]
-    print(f"{'CAN, in-process (loop thread)':44s} {'loop s/MiB':>8s} {'send s/MiB':>8s} {'Notifier':>8s} "
-          f"{'CPU s/bus s':>8s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s} {'answers':>9s}", flush=True)
+    print(f"{'CAN, in-process, s/MiB':44s} {'loop':>8s} {'reader':>8s} {'sim':>8s} {'client send':>8s} "
+          f"{'CPU s/bus s':>8s} {'p50 ms':>7s} {'p99 ms':>7s} {'max ms':>7s} {'CAN frames':>7s} {'answers':>9s}",
+          flush=True)
     for name, units in cases:
         case(name, units)
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import dpkt
 
 from pywsg.capture.reader import frames_from_capture
-from pywsg.cli.editor import parse_payload
 from pywsg.protocol import Frame, Status
+from pywsg.protocol.editor import parse_payload
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout, for tests/
 from tests.ports import free_port  # ports below the ephemeral range, as the tests pick them

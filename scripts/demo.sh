@@ -7,7 +7,13 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
+    echo "creating a Python virtual environment in .venv"
     "$PY" -m venv .venv
+fi
+if [ ! -x .venv/bin/wsg ]; then
+    echo "installing pywsg and its web interface into .venv (pip install -e '.[web]'; a first run takes about a minute)"
+else
+    echo "checking pywsg's installation in .venv (pip install -e '.[web]')"
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[web]"
 exec .venv/bin/wsg demo "$@"

@@ -40,6 +40,7 @@ if [ ${#need[@]} -gt 0 ]; then
 fi
 # axe-core (npm) checks the web pages for WCAG violations in the browser tests
 if [ ! -f .venv/axe/node_modules/axe-core/axe.min.js ]; then
+    echo "== installing axe-core 4 from npm into .venv/axe (the browser tests' accessibility check)"
     npm install --prefix .venv/axe --no-save --no-audit --no-fund --loglevel=error axe-core@4 >/dev/null
 fi
 # The ROS 2 test environment (.venv-ros: pinned ROS 2 wheels, two interface packages built with cmake) is built
@@ -72,6 +73,7 @@ if [ $# -eq 0 ]; then
     oldest=$(sed -n 's/^ *"pymodbus>=\([0-9.]*\).*/\1/p' pyproject.toml | head -n 1)
     [ -n "$oldest" ] || { echo "no pymodbus>= pin found in pyproject.toml" >&2; exit 1; }
     target=.venv/pymodbus-$oldest
+    [ -d "$target/pymodbus" ] || echo "== installing pymodbus $oldest into $target (the oldest supported, for a second run)"
     [ -d "$target/pymodbus" ] || .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps --target "$target" "pymodbus==$oldest"
     PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --dist load -m pymodbus \
         >.venv/pytest-oldest-pymodbus.log 2>&1 &

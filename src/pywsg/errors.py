@@ -164,6 +164,7 @@ class BadChecksumReply(ChecksumError, ProtocolError):
 
 #: The driver's advice, in Python words; front ends translate it (`wsg` says "run `wsg ack` first").
 HINT_ACKNOWLEDGE = "call acknowledge() first"
+HINT_ACKNOWLEDGE_AFTER = "then call acknowledge()"
 HINT_HOME = "call home() first"
 
 _BY_STATUS: dict[int, type[WsgError]] = {
@@ -193,8 +194,12 @@ _ACK_BLOCKERS = (
 )
 
 
+def _blockers(flags: SystemFlag | None) -> list[str]:
+    return [text for flag, text in _ACK_BLOCKERS if flags is not None and flags & flag]
+
+
 def _ack_refused(flags: SystemFlag | None) -> str:
-    found = [text for flag, text in _ACK_BLOCKERS if flags is not None and flags & flag]
+    found = _blockers(flags)
     if not found:
         return "acknowledge refused: the fault that caused the FAST STOP persists; fix its cause first"
     return f"acknowledge refused while {' and '.join(found)} persists; fix its cause, then acknowledge"
@@ -210,7 +215,12 @@ def error_for(status: Status | int, command: int | None, flags: SystemFlag | Non
         detail = detail or _ack_refused(flags)
     elif cls is AccessDeniedError and flags is not None and flags & SystemFlag.SF_FAST_STOP:
         cls = FastStopError
-        detail = detail or f"the gripper is in FAST STOP; {HINT_ACKNOWLEDGE}"
+        blockers = _blockers(flags)
+        if blockers:  # acknowledging is refused while the fault persists: name it first (000 §3.2.5)
+            detail = detail or (f"the gripper is in FAST STOP while {' and '.join(blockers)} persists: fix its "
+                                f"cause first (acknowledge is refused until then), {HINT_ACKNOWLEDGE_AFTER}")
+        else:
+            detail = detail or f"the gripper is in FAST STOP; {HINT_ACKNOWLEDGE}"
     elif cls is CommandFailedError and command == Command.GRIP_PART:
         cls = NoPartError
         detail = detail or "no part found within the clamping travel"

@@ -6,7 +6,7 @@ import struct
 
 import pytest
 
-from pywsg.cli.editor import PayloadSyntaxError, build_packet, parse_command_id, parse_payload, tokenize
+from pywsg.protocol.editor import PayloadSyntaxError, build_packet, parse_command_id, parse_payload, tokenize
 
 from .conftest import run_wsg
 

@@ -47,7 +47,7 @@ def test_podman_run_recipe(image: str, cleanup: list[tuple[str, ...]]) -> None:
     line = next(ln.strip() for ln in DOC.replace("\\\n", " ").splitlines() if ln.strip().startswith("podman run -d"))
     base = free_base(2)
     name = unique("run")
-    line = (line.replace("--name gripper", f"--name {name}").replace("pywsg-sim:0.3.0", image)
+    line = (line.replace("--name gripper", f"--name {name}").replace("pywsg-sim:0.4.0", image)
             .replace("127.0.0.1:1000:", f"127.0.0.1:{base}:").replace("127.0.0.1:1500:", f"127.0.0.1:{base}:")
             .replace("127.0.0.1:8080:", f"127.0.0.1:{base + 1}:"))
     cleanup.append(("rm", "-f", "-v", name))

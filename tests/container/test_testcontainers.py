@@ -77,7 +77,7 @@ def test_the_documented_example_runs(image: str, tc_settings: None) -> None:
     doc = (ROOT / "docs" / "container.md").read_text()
     start = doc.index("### testcontainers (Python)")
     block = doc[doc.index("```python\n", start) + 10 : doc.index("```\n", doc.index("```python\n", start) + 10)]
-    assert '"pywsg-sim:0.3.0"' in block
+    assert '"pywsg-sim:0.4.0"' in block
     namespace: dict[str, object] = {}
-    exec(compile(block.replace('"pywsg-sim:0.3.0"', repr(image)), "docs/container.md", "exec"), namespace)
+    exec(compile(block.replace('"pywsg-sim:0.4.0"', repr(image)), "docs/container.md", "exec"), namespace)
     namespace["test_pick"]()  # type: ignore[operator]

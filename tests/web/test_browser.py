@@ -69,9 +69,9 @@ def test_every_page_opens_and_goes_live(sim: LiveSim, page: Any) -> None:
         assert page.inner_text("#ws-text") == "live"
         assert page.locator("#flag-list li").count() == 19
         shot(page, "page" + path.replace("/", "_"))
-    # menu: the Diagnostics drop-down (003 §6, figure 1) leads to the Fieldbus Monitor
+    # menu: the Diagnosis drop-down (003 §6: "Diagnosis -> Fieldbus Monitor") leads to the Fieldbus Monitor
     page.goto(sim.url + "/")
-    page.hover("text=Diagnostics")
+    page.hover("text=Diagnosis")
     page.click("a[href='/diagnosis/fieldbus']")
     assert page.inner_text("main h1") == "Fieldbus Monitor"
 

@@ -254,7 +254,7 @@ def test_menu_keys_arrows_and_leaving_with_tab(sim: LiveSim, pages: Any) -> None
     page = pages(**LAPTOP)
     page.goto(sim.url + "/")
     live(page)
-    button = page.locator("button[aria-controls='menu-diagnostics']")
+    button = page.locator("button[aria-controls='menu-diagnosis']")
     button.focus()
     page.keyboard.press("ArrowDown")  # opens the menu on its first item
     assert button.get_attribute("aria-expanded") == "true"
@@ -268,7 +268,7 @@ def test_menu_keys_arrows_and_leaving_with_tab(sim: LiveSim, pages: Any) -> None
     assert page.evaluate(active) == "/diagnosis/fieldbus"
     page.keyboard.press("Tab")  # focus leaves the menu: it closes
     assert button.get_attribute("aria-expanded") == "false"
-    assert page.locator("#menu-diagnostics").is_hidden()
+    assert page.locator("#menu-diagnosis").is_hidden()
 
 
 @pytest.mark.parametrize("size", ["phone", "small-phone"])
@@ -329,7 +329,7 @@ def test_escape_stops_from_any_field_and_first_closes_a_menu(sim: LiveSim, pages
     assert page.get_attribute("#btn-stop", "aria-keyshortcuts") == "Escape"
     api.post("/api/move", json={"width": 5.0 if sim.snapshot().width > 50 else 100.0, "speed": 5.0})
     wait_for(lambda: sim.snapshot().moving)
-    menu = page.locator("button[aria-controls='menu-diagnostics']")
+    menu = page.locator("button[aria-controls='menu-diagnosis']")
     menu.click()
     stops = _stops(sim)
     page.keyboard.press("Escape")  # closes the menu only
@@ -370,9 +370,9 @@ def test_menu_and_header_follow_figure_1_of_the_fieldbus_manual(sim: LiveSim, pa
         live(page)
         menu = page.evaluate("Array.from(document.querySelectorAll('ul.nav > li > a, ul.nav > li > button'))"
                              ".map(e => e.textContent.trim())")
-        # "Settings | Diagnostics | Scripting | Motion | Help", in that order
-        order = [m for m in menu if m in ("Settings", "Diagnostics", "Scripting", "Motion", "Help")]
-        assert order == ["Settings", "Diagnostics", "Scripting", "Motion", "Help"], menu
+        # figure 1's "Settings | Diagnostics | Scripting | Motion | Help", named as the manuals' menu paths do
+        order = [m for m in menu if m in ("Settings", "Diagnosis", "Scripting", "Motion", "Help")]
+        assert order == ["Settings", "Diagnosis", "Scripting", "Motion", "Help"], menu
         page.wait_for_function("document.getElementById('id-location').innerText === 'n/a'")
         assert "Location: n/a, Contact: n/a" in page.inner_text("header")
         r = api.post("/api/settings", json={"location": "cell 7", "contact": "line@example.com"})

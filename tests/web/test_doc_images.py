@@ -16,7 +16,7 @@ import pywsg
 from .conftest import DOC_IMAGES, DOC_IMAGES_MANIFEST
 
 REGENERATE = ("PYWSG_UPDATE_DOC_IMAGES=1 pytest -p no:cacheprovider tests/web/test_browser.py "
-              "tests/web/test_browser_product.py")
+              "tests/web/test_browser_product.py tests/web/commander/test_commander_axe.py")
 
 
 def test_every_docs_screenshot_shows_the_current_version() -> None:

@@ -67,8 +67,32 @@ def _motion_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--motion-timeout", type=click.FloatRange(min=0.01), default=MOTION_TIMEOUT, show_default=True,
                      metavar="SECONDS", help="How long to wait for the motion's final reply.")(f)
     f = click.option("--wait/--no-wait", default=True, show_default=True,
-                     help="Wait for the motion's final reply (--no-wait: return after E_CMD_PENDING).")(f)
+                     help="Wait for the motion's final reply (--no-wait: return after E_CMD_PENDING; UDP and "
+                          "serial only, since over TCP the 07h sent on exit aborts the motion).")(f)
     return f
+
+
+NO_WAIT_OVER_TCP = (
+    "--no-wait over TCP would abort the motion at once: wsg ends its TCP session with the disconnect "
+    "announcement (07h) as it exits, and the gripper aborts a motion running when 07h arrives (000 §3.1.2). "
+    "Leave out --no-wait (wsg waits for the final reply), or send the command over UDP or serial, which "
+    "have no disconnect announcement (--url udp://HOST:1500)")
+
+
+def refuse_no_wait_over_tcp(ctx: click.Context, wait: bool) -> None:
+    """``--no-wait`` over TCP: refused with the reason (exit 2), since the 07h sent on exit stops the motion."""
+    if wait:
+        return
+    from ..client import parse_url
+
+    root = ctx.find_root().obj or {}
+    url = ctx.meta.get("pywsg.url") or root.get("url") or "tcp://127.0.0.1:1000"
+    try:
+        scheme = parse_url(url).scheme
+    except ValueError:
+        return  # the connection attempt reports the bad URL
+    if scheme == "tcp":
+        raise click.UsageError(NO_WAIT_OVER_TCP, ctx)
 
 
 def _readback(g: Any) -> Awaitable[float]:
@@ -155,6 +179,8 @@ async def _check_force_limit(g: Any, force: float) -> None:
 @click.pass_context
 def home(ctx: click.Context, /, direction: str, wait: bool, motion_timeout: float, **kw: Any) -> None:
     """Reference the fingers (20h Homing) by moving to the mechanical end stop."""
+    refuse_no_wait_over_tcp(ctx, wait)
+
     async def act(g: Any) -> dict[str, Any]:
         await g.home(direction, wait=wait)
         return {"width": await _readback(g)} if wait else {"pending": True}
@@ -173,6 +199,8 @@ def home(ctx: click.Context, /, direction: str, wait: bool, motion_timeout: floa
 def move(ctx: click.Context, /, width: float, speed: float, relative: bool, stop_on_block: bool, wait: bool,
          motion_timeout: float, **kw: Any) -> None:
     """Pre-position the fingers (21h) to WIDTH mm (or by WIDTH mm with --relative)."""
+    refuse_no_wait_over_tcp(ctx, wait)
+
     async def act(g: Any) -> dict[str, Any]:
         await _check_motion(g, width, speed, relative=relative)
         await g.move(width, speed, relative=relative, stop_on_block=stop_on_block, wait=wait)
@@ -191,6 +219,8 @@ def move(ctx: click.Context, /, width: float, speed: float, relative: bool, stop
 def grip(ctx: click.Context, /, width: float, speed: float, force: float | None, wait: bool, motion_timeout: float,
          **kw: Any) -> None:
     """Grip a part of nominal width WIDTH mm (25h Grip Part). Exit 1 with E_CMD_FAILED when no part is found."""
+    refuse_no_wait_over_tcp(ctx, wait)
+
     async def act(g: Any) -> dict[str, Any]:
         await _check_motion(g, width, speed, force=force, what="the part width")
         await g.grip(width, speed, force, wait=wait)
@@ -209,6 +239,8 @@ def grip(ctx: click.Context, /, width: float, speed: float, force: float | None,
 def release(ctx: click.Context, /, width: float | None, speed: float, wait: bool, motion_timeout: float,
             **kw: Any) -> None:
     """Release a gripped part by opening to WIDTH mm (26h Release Part; default: fully open, the stroke)."""
+    refuse_no_wait_over_tcp(ctx, wait)
+
     async def act(g: Any) -> dict[str, Any]:
         lim = await _check_motion(g, width, speed)
         w = width if width is not None else lim.stroke
@@ -376,7 +408,7 @@ def finger(ctx: click.Context, /, n: int, what: str, mode: str | None, **kw: Any
 @click.pass_context
 def loop_cmd(ctx: click.Context, /, payload: tuple[str, ...], **kw: Any) -> None:
     """Loop-back test (06h): the gripper returns PAYLOAD (editor syntax, as for `wsg send`; default "pywsg")."""
-    from .editor import PayloadSyntaxError, parse_payload
+    from ..protocol.editor import PayloadSyntaxError, parse_payload
 
     try:
         data = parse_payload(payload) if payload else b"pywsg"

@@ -25,7 +25,7 @@ import click
 
 from ..capture.commlog import CommLog, entry_from_json
 from ..protocol import Command, Frame
-from .editor import PayloadSyntaxError, build_packet
+from ..protocol.editor import PayloadSyntaxError, build_packet
 from .runner import EXIT_CONNECTION, EXIT_USAGE, common_options, options
 
 STREAMS = {"state": Command.GET_SYSTEM_STATE, "gripper-state": Command.GET_GRIPPER_STATE,

@@ -27,6 +27,7 @@ _SUBCOMMANDS: dict[str, str] = {
     "proxy": "pywsg.cli.proxy:proxy",
     "replay": "pywsg.cli.replay:replay",
     "gsd": "pywsg.cli.gsd:gsd",
+    "commander": "pywsg.cli.commander:commander",
     "ros": "pywsg.cli.ros:ros",
     # driver-backed commander commands (issue 5) register themselves in pywsg.cli.commands
 }
@@ -40,8 +41,8 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "State": ("state", "info", "width", "speed", "force", "gripper-state", "flags", "temp", "limits", "stats",
               "monitor"),
     "Configuration": ("accel", "force-limit", "soft-limits", "overdrive", "tare", "tag", "finger"),
-    "Tools": ("send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy", "replay",
-              "ros"),
+    "Tools": ("commander", "send", "loop", "log", "decode", "sim", "demo", "plc-demo", "gsd", "world", "proxy",
+              "replay", "ros"),
 }
 
 
@@ -78,7 +79,105 @@ class SuggestingGroup(click.Group):
         return super().resolve_command(ctx, args)
 
 
-class LazyGroup(SuggestingGroup):
+def _option_names(params: list[click.Parameter]) -> tuple[set[str], set[str]]:
+    """The option names among ``params``, and those of them that take a value."""
+    names: set[str] = set()
+    valued: set[str] = set()
+    for p in params:
+        if isinstance(p, click.Option):
+            names.update(p.opts, p.secondary_opts)
+            if not p.is_flag and not p.count:
+                valued.update(p.opts)
+    return names, valued
+
+
+class EitherSideGroup(SuggestingGroup):
+    """Global options work on either side of the command name (issue 34 item 6).
+
+    ``wsg --timeout 2 state`` and ``wsg state -v`` mean ``wsg state --timeout 2`` and ``wsg -v state``:
+    before click parses, an option ``wsg`` does not know that stands before the command name moves
+    behind it, an option of ``wsg`` the command does not have itself (``-v``, ``--log``, ``--json``,
+    ...) moves in front of it, and ``--json``/``--log``/``--log-file`` before the name go to a command
+    that has its own (``wsg --json decode X``). The command's own option wins where both have one.
+    """
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if not ctx.resilient_parsing:
+            args = self._either_side(ctx, args)
+        return super().parse_args(ctx, args)
+
+    def _either_side(self, ctx: click.Context, args: list[str]) -> list[str]:
+        mine, mine_valued = _option_names(self.get_params(ctx))
+        commands = set(self.list_commands(ctx))
+        front: list[str] = []
+        behind: list[str] = []  # options for the command, found before its name
+        i = 0
+        while i < len(args) and args[i] not in commands:
+            word = args[i]
+            if word == "--" or not word.startswith("-"):
+                return args  # no command name where one could be: leave it to click's messages
+            name = word.split("=", 1)[0]
+            ours = name in mine or _is_verbose(word)
+            target = front if ours else behind
+            target.append(word)
+            i += 1
+            nxt = args[i] if i < len(args) else None
+            # a value follows: one of ours that takes it, or for the command's option a word that is
+            # neither an option nor a command name (``--timeout 2``)
+            takes = name in mine_valued if ours else nxt is not None and not nxt.startswith("-")
+            if "=" not in word and takes and nxt is not None and nxt not in commands:
+                target.append(nxt)
+                i += 1
+        if i >= len(args):
+            return args
+        cmd = self.get_command(ctx, args[i])
+        if cmd is None:
+            return args
+        theirs, theirs_valued = _option_names(cmd.get_params(ctx))
+        # ``wsg --json decode X`` is ``wsg decode --json X``: an option of the same meaning on both
+        # sides goes to a command that has it (a command that has none reads wsg's, see runner.options)
+        kept: list[str] = []
+        k = 0
+        while k < len(front):
+            word = front[k]
+            name = word.split("=", 1)[0]
+            n = 2 if name in mine_valued and "=" not in word and k + 1 < len(front) else 1
+            (behind if name in SAME_MEANING and name in theirs else kept).extend(front[k:k + n])
+            k += n
+        front = kept
+        rest: list[str] = []
+        j = i + 1
+        while j < len(args):
+            word = args[j]
+            name = word.split("=", 1)[0]
+            if word == "--":
+                rest.extend(args[j:])
+                break
+            if name in theirs:
+                rest.append(word)
+                if name in theirs_valued and "=" not in word and j + 1 < len(args):
+                    rest.append(args[j + 1])
+                    j += 1
+            elif name in mine or _is_verbose(word):
+                front.append(word)
+                if name in mine_valued and "=" not in word and j + 1 < len(args):
+                    front.append(args[j + 1])
+                    j += 1
+            else:
+                rest.append(word)
+            j += 1
+        return [*front, args[i], *behind, *rest]
+
+
+SAME_MEANING = frozenset({"--json", "--log", "--log-file"})
+"""Options of ``wsg`` that mean the same as a command's own option of that name."""
+
+
+def _is_verbose(word: str) -> bool:
+    return len(word) > 1 and word[0] == "-" and set(word[1:]) == {"v"}
+
+
+class LazyGroup(EitherSideGroup):
     """A click group that imports each subcommand's module on first use."""
 
     def _commander(self) -> dict[str, click.Command]:

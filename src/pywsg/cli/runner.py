@@ -19,7 +19,7 @@ from typing import Any, NoReturn, TypeVar
 import click
 
 from ..capture.commlog import CommLog
-from ..errors import HINT_ACKNOWLEDGE, HINT_HOME
+from ..errors import HINT_ACKNOWLEDGE, HINT_ACKNOWLEDGE_AFTER, HINT_HOME
 from ..protocol import Status, StatusError
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -112,6 +112,7 @@ def emit(value: Any, as_json: bool, key: str = "value") -> None:
 #: The driver's hints name Python calls; on the command line the same advice names `wsg` commands.
 CLI_HINTS: dict[str, str] = {
     HINT_ACKNOWLEDGE: "run `wsg ack` first",
+    HINT_ACKNOWLEDGE_AFTER: "then run `wsg ack`",
     HINT_HOME: "run `wsg home` first",
 }
 

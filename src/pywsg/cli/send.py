@@ -12,7 +12,7 @@ from click.shell_completion import CompletionItem
 from ..capture.commlog import summary
 from ..protocol import CATALOG, Frame, Status
 from ..protocol.decode import decode_frame
-from .editor import PayloadSyntaxError, build_packet
+from ..protocol.editor import PayloadSyntaxError, build_packet
 from .runner import EXIT_CONNECTION, EXIT_STATUS, EXIT_USAGE, common_options, options
 
 

@@ -591,6 +591,10 @@ class GrippingCycle:
                 "on ERROR, and a FAST STOP sets IDLE (002 §4.6); --recover-fast-stop treats FAST STOP like ERROR")
 
 
+GSTATE_NAMES = {"GRASPING": GState.GRIPPING.name}
+"""The listing's Bool names (STW1) that differ from the gripper state's name."""
+
+
 def _status_name(code: int) -> str:
     try:
         return Status(code).name
@@ -599,8 +603,9 @@ def _status_name(code: int) -> str:
 
 
 def _gstate_name(stw1: SclBools) -> str:
-    """The gripper state named in STW1 (one-hot), as the listing spells it (GRASPING for GRIPPING)."""
-    states = [name for name in STW1_BOOLS[:8] if getattr(stw1, name)]
+    """The gripper state named in STW1 (one-hot) by its one name: the listing's Bool GRASPING is the
+    state GRIPPING (000 §3.4.2), which the step texts beside it name too."""
+    states = [GSTATE_NAMES.get(name, name) for name in STW1_BOOLS[:8] if getattr(stw1, name)]
     return states[0] if len(states) == 1 else f"GSTATE={'+'.join(states) or '0'}"
 
 

@@ -12,11 +12,13 @@ parser resynchronises on the next preamble. Other identifiers, remote and error 
 :mod:`pywsg.client.can`. Needs python-can (``pywsg[can]``); tests use its ``virtual``
 interface.
 
-Cost per frame (issue 23 item 15): python-can's ``Notifier`` thread only queues the frames it reads;
-the loop takes every frame that is ready in one turn (up to :data:`DRAIN`) and feeds their bytes to the
-gripper at once, and the CAN frames of a reply are made once per distinct reply (:data:`MSG_CACHE`).
-What is left per frame is python-can's own: its ``recv`` and ``send`` (the ``virtual`` bus deep-copies
-every message it sends, see docs/benchmarks.md).
+Cost per frame (issue 23 item 15, issue 33 item 13): the reader thread only queues the frames it
+reads; the loop takes every frame that is ready in one turn (up to :data:`DRAIN`), feeds their bytes to
+the gripper at once and sends the answers of that turn as one byte stream, cut into full CAN frames
+(a 10-byte E_CHECKSUM_ERROR reply then takes 1.25 CAN frames instead of 2). On the ``virtual`` bus,
+python-can's per-message ``send`` and ``recv`` are replaced by batches (:mod:`.can_virtual`); on other
+interfaces the CAN frames of the stream are made once per distinct 8 bytes (:data:`MSG_CACHE`) and
+sent with python-can's ``send``, read by its ``Notifier``. See docs/benchmarks.md.
 """
 
 from __future__ import annotations
@@ -25,9 +27,11 @@ import asyncio
 import collections
 import functools
 import logging
+from collections.abc import Iterable
 from typing import Any
 
 from ..protocol import Frame
+from . import can_virtual
 from .device_api import GripperLike
 from .netfault import Shaper, net_faults
 from .scheduler import DeviceRunner
@@ -37,8 +41,9 @@ log = logging.getLogger("pywsg.server.can")
 DRAIN = 512
 """CAN frames (≤ 4 KiB) fed to the gripper per loop turn at most, like TCP's read slice: a flood
 leaves the other clients their turn."""
-MSG_CACHE = 256
-"""Distinct replies whose CAN frames are kept (a flood of bad frames gets the same reply each time)."""
+MSG_CACHE = 1024
+"""Distinct 8-byte pieces of reply whose CAN frames are kept (a flood of bad frames gets the same reply
+each time, so the stream of replies repeats)."""
 
 
 @functools.cache
@@ -91,7 +96,8 @@ class CanServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._inbox: collections.deque[bytearray] = collections.deque()  # data of accepted frames, in order
         self._draining = False  # a _drain is scheduled on the loop
-        self._msgs: dict[bytes, tuple[Any, ...]] = {}  # encoded reply -> its CAN frames
+        self._msgs: dict[bytes, Any] = {}  # up to 8 bytes of reply -> its CAN frame
+        self._virtual = False  # python-can's virtual bus, sent to and read in batches
         self.net = net_faults(gripper)
         """Network faults (drop, reorder, garble, latency, silence) on each CAN frame (:mod:`pywsg.server.netfault`)."""
         self.shaper = Shaper(self.net, self._send_frame, ordered=False)
@@ -110,8 +116,11 @@ class CanServer:
             kwargs["bitrate"] = self.bitrate
         self._bus = can.Bus(**kwargs)
         self.session = self.gripper.open_session("can", peer=self.channel, deliver=self.deliver)
-        # no loop given: the Notifier's thread calls _on_message, which only queues (see _drain)
-        self._notifier = can.Notifier(self._bus, [self._on_message])
+        self._virtual = can_virtual.batchable(self._bus)
+        if self._virtual:
+            self._notifier = can_virtual.Reader(self._bus, self._on_messages, name=f"can-reader-{self.channel}")
+        else:  # no loop given: the Notifier's thread calls _on_message, which only queues (see _drain)
+            self._notifier = can.Notifier(self._bus, [self._on_message])
         return self
 
     @property
@@ -122,13 +131,19 @@ class CanServer:
                 f"&request_id=0x{self.rx_id:X}&reply_id=0x{self.tx_id:X}")
 
     def _on_message(self, msg: Any) -> None:
-        """On the Notifier's thread: queue an accepted frame's data; wake the loop once per batch."""
-        if (msg.arbitration_id != self.rx_id or msg.is_remote_frame or msg.is_error_frame
-                or msg.is_extended_id or getattr(msg, "is_fd", False) or len(msg.data) > 8):
-            self.foreign += 1
-            return
-        self._inbox.append(msg.data)
-        if not self._draining:
+        """On the Notifier's thread: one frame (see :meth:`_on_messages`)."""
+        self._on_messages((msg,))
+
+    def _on_messages(self, msgs: Iterable[Any]) -> None:
+        """On the reader's thread: queue the accepted frames' data; wake the loop once per batch."""
+        rx_id, inbox = self.rx_id, self._inbox
+        for msg in msgs:
+            if (msg.arbitration_id != rx_id or msg.is_remote_frame or msg.is_error_frame
+                    or msg.is_extended_id or msg.is_fd or len(msg.data) > 8):
+                self.foreign += 1
+                continue
+            inbox.append(msg.data)
+        if inbox and not self._draining:
             self._draining = True
             try:
                 self._loop.call_soon_threadsafe(self._drain)  # type: ignore[union-attr]
@@ -162,23 +177,26 @@ class CanServer:
             data = b"".join(parts)
         if not data:
             return
-        for frame in self.gripper.feed(self.session, data):
-            self._send(frame.encode())
+        replies = self.gripper.feed(self.session, data)
+        if replies:  # one byte stream, as on a serial line: the driver's parser reassembles it
+            self._send(b"".join([frame.encode() for frame in replies]))
 
     def deliver(self, frame: Frame) -> None:
         self._send(frame.encode())
 
-    def _messages(self, data: bytes) -> tuple[Any, ...]:
-        """``data`` as CAN frames of up to 8 bytes on ``tx_id`` (all but the last full), made once per
-        distinct ``data``: python-can's send does not change a message, so one can go out many times."""
-        msgs = self._msgs.get(data)
-        if msgs is None:
-            message, tx, raw = self._message, self.tx_id, bytearray(data)
-            msgs = tuple(message(arbitration_id=tx, data=raw[i : i + 8], is_extended_id=False)
-                         for i in range(0, len(raw), 8))
-            if len(self._msgs) >= MSG_CACHE:
-                self._msgs.clear()
-            self._msgs[data] = msgs
+    def _messages(self, data: bytes) -> list[Any]:
+        """``data`` as CAN frames of up to 8 bytes on ``tx_id`` (all but the last full), each made once
+        per distinct 8 bytes: python-can's send does not change a message, so one can go out many times."""
+        cache, msgs = self._msgs, []
+        for i in range(0, len(data), 8):
+            chunk = data[i : i + 8]
+            msg = cache.get(chunk)
+            if msg is None:
+                msg = self._message(arbitration_id=self.tx_id, data=bytearray(chunk), is_extended_id=False)
+                if len(cache) >= MSG_CACHE:
+                    cache.clear()
+                cache[chunk] = msg
+            msgs.append(msg)
         return msgs
 
     def _send(self, data: bytes) -> None:
@@ -191,6 +209,9 @@ class CanServer:
                 self.shaper.send(data[i : i + 8])
             return
         try:
+            if self._virtual and can_virtual.send_many(
+                    bus, self.tx_id, [data[i : i + 8] for i in range(0, len(data), 8)]):
+                return
             for msg in self._messages(data):
                 bus.send(msg)
         except self._can.CanError as exc:  # the rest of this reply is lost, as on a bus that fails

@@ -131,8 +131,8 @@ class _Server(uvicorn.Server):
 
 
 @dataclasses.dataclass
-class WebHandle:
-    """A running web interface: ``url`` to open, ``close()`` to stop it."""
+class ServedApp:
+    """An app served by :func:`serve_app`: ``url`` to open it, ``stop_serving()`` to end the server."""
 
     host: str
     port: int
@@ -148,15 +148,23 @@ class WebHandle:
             host = "127.0.0.1"
         return f"http://{host}:{self.port}/"
 
-    async def close(self) -> None:
-        ctx: WebContext = self.app.state.ctx
-        ctx.closing.set()
+    async def stop_serving(self) -> None:
         self._server.should_exit = True
         with contextlib.suppress(asyncio.CancelledError):
             try:
                 await asyncio.wait_for(asyncio.shield(self._task), timeout=5.0)
             except TimeoutError:
                 self._task.cancel()
+
+
+@dataclasses.dataclass
+class WebHandle(ServedApp):
+    """A running web interface: ``url`` to open, ``close()`` to stop it."""
+
+    async def close(self) -> None:
+        ctx: WebContext = self.app.state.ctx
+        ctx.closing.set()
+        await self.stop_serving()
         ctx.bridge.close()
 
 
@@ -172,6 +180,35 @@ def _bind(host: str, port: int) -> socket.socket:
         raise
     sock.set_inheritable(True)
     return sock
+
+
+async def serve_app(app: Any, host: str, port: int, *, ssl_certfile: str | None = None,
+                    ssl_keyfile: str | None = None, max_connections: int = 64, idle_timeout: float | None = None,
+                    requests_per_connection: int | None = 100, request_rate: float | None = REQUEST_RATE,
+                    request_burst: int = REQUEST_BURST) -> tuple[_Server, asyncio.Task[None], int]:
+    """Serve the ASGI ``app`` on the running loop with the web interface's connection limits and
+    per-client request rate (the options of :func:`serve_web`); (server, its task, the bound port).
+    The Commander (``wsg commander``) is served the same way."""
+    from ..server.conncap import capped_http_protocol
+    from ..server.ratelimit import RequestRate
+
+    sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
+    real_port = int(sock.getsockname()[1])
+    config = uvicorn.Config(
+        app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
+        timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
+        ws_ping_interval=None, ws_max_size=live.WS_MAX_MESSAGE, server_header=False, http=capped_http_protocol(
+            max_connections, idle_timeout, requests_per_connection,
+            RequestRate(request_rate, request_burst) if request_rate else None),
+    )
+    server = _Server(config)
+    task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")
+    while not server.started:
+        if task.done():
+            sock.close()
+            raise OSError(f"web server could not start on {host}:{real_port}") from task.exception()
+        await asyncio.sleep(0.01)
+    return server, task, real_port
 
 
 async def serve_web(gripper: Any, host: str, port: int, *, password: str | None = None, fieldbus: Any = None,
@@ -204,28 +241,16 @@ async def serve_web(gripper: Any, host: str, port: int, *, password: str | None 
         raise ValueError("password must be 1..256 characters")
     app = create_app(gripper, loopback=loopback, password=password, fieldbus=fieldbus, sim_info=sim_info,
                      settings_path=settings_path, host=host, allowed_hosts=allowed_hosts)
-    from ..server.conncap import capped_http_protocol
-    from ..server.ratelimit import RequestRate
-
-    sock = _bind(host, port)  # bind here: errors raise OSError instead of uvicorn's sys.exit
-    real_port = int(sock.getsockname()[1])
-    config = uvicorn.Config(
-        app, host=host, port=real_port, log_level="warning", ws="websockets-sansio", lifespan="off",
-        timeout_graceful_shutdown=2, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile,
-        ws_ping_interval=None, ws_max_size=live.WS_MAX_MESSAGE, server_header=False, http=capped_http_protocol(
-            max_connections, idle_timeout, requests_per_connection,
-            RequestRate(request_rate, request_burst) if request_rate else None),
-    )
-    server = _Server(config)
-    task = asyncio.create_task(server.serve(sockets=[sock]), name=f"pywsg-web-{host}:{real_port}")
-    while not server.started:
-        if task.done():
-            app.state.ctx.bridge.close()
-            sock.close()
-            raise OSError(f"web interface could not start on {host}:{real_port}") from task.exception()
-        await asyncio.sleep(0.01)
+    try:
+        server, task, real_port = await serve_app(
+            app, host, port, ssl_certfile=ssl_certfile, ssl_keyfile=ssl_keyfile, max_connections=max_connections,
+            idle_timeout=idle_timeout, requests_per_connection=requests_per_connection,
+            request_rate=request_rate, request_burst=request_burst)
+    except OSError:
+        app.state.ctx.bridge.close()
+        raise
     log.info("web interface on %s:%d", host, real_port)
     return WebHandle(host=host, port=real_port, password=password, app=app, _server=server, _task=task)
 
 
-__all__ = ["WebHandle", "create_app", "serve_web"]
+__all__ = ["ServedApp", "WebHandle", "create_app", "serve_app", "serve_web"]

@@ -18,6 +18,7 @@ import logging
 from collections.abc import Awaitable, Callable, Iterable
 from html import escape
 from string import Template
+from typing import Protocol
 from urllib.parse import parse_qs, quote, urlsplit
 
 from fastapi import APIRouter, FastAPI, HTTPException, Request, WebSocket
@@ -27,9 +28,9 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from . import health, world_api
-from .context import MAX_BODY, WebContext, error
+from .context import MAX_BODY, error
 from .pages import template
-from .security import COOKIE_NAME, CSRF_FIELD, CSRF_HEADER, WebSession
+from .security import COOKIE_NAME, CSRF_FIELD, CSRF_HEADER, Auth, WebSession
 
 log = logging.getLogger(__name__)
 
@@ -129,7 +130,14 @@ class BodyLimit:
         await self.app(scope, limited, send)
 
 
-def install_guard(app: FastAPI, ctx: WebContext, *, bound: str | None = None,
+class HasAuth(Protocol):
+    """What the guard needs of an app's context: its session store (the web interface's
+    ``WebContext``, the Commander's own)."""
+
+    auth: Auth
+
+
+def install_guard(app: FastAPI, ctx: HasAuth, *, bound: str | None = None,
                   allowed_hosts: Iterable[str] = ()) -> None:
     """The host check, the body limit, the session/permission/CSRF middleware and the headers."""
     # Starlette runs the middleware added last first: HostCheck, the guard, then BodyLimit (inside
@@ -210,7 +218,7 @@ _NO_LOGIN = """<h1>WSG Control Panel</h1>
 <p><a class="back" id="login-back" href="$next">Back to the interface</a></p>"""
 
 
-def login_html(ctx: WebContext, request: Request, target: str, error_text: str, status: int = 200) -> HTMLResponse:
+def login_html(ctx: HasAuth, request: Request, target: str, error_text: str, status: int = 200) -> HTMLResponse:
     s: WebSession = request.state.websession
     content = Template(_LOGIN_FORM if ctx.auth.login_possible else _NO_LOGIN).safe_substitute(
         csrf=escape(s.csrf), next=escape(safe_next(target)), error=escape(error_text))
@@ -218,7 +226,7 @@ def login_html(ctx: WebContext, request: Request, target: str, error_text: str, 
     return HTMLResponse(body, status_code=status, headers={"Cache-Control": "no-store"})
 
 
-def router(ctx: WebContext) -> APIRouter:
+def router(ctx: HasAuth) -> APIRouter:
     """GET/POST /login and POST /logout."""
     r = APIRouter(include_in_schema=False)
 

@@ -25,13 +25,15 @@ HERE = Path(__file__).resolve().parent
 TEMPLATES = HERE / "templates"
 PROJECT_DOCS = HERE.parents[2] / "docs"  # source checkout only; the Help page says when missing
 
-# The menu bar of manual 003 §6, figure 1: "Settings | Diagnostics | Scripting | Motion | Help" (its text
-# says "Diagnosis -> Fieldbus Monitor"; the figure is the device's own menu: docs/fidelity.md), after
-# the Control Panel (the figure's title) and before pywsg's own Simulation page.
+# The menu bar of manual 003 §6, figure 1: "Settings | Diagnostics | Scripting | Motion | Help", named as
+# the manuals' menu paths name it, so each path they give exists: "Settings -> Command Interface" (000
+# §1.4.1, §1.4.2), "Settings -> Motion Configuration" (003 §4), "Diagnosis -> Fieldbus Monitor" (003 §6);
+# Motion keeps the figure's Motion Configuration too (docs/fidelity.md "Menu names"). After the Control
+# Panel (the figure's title) and before pywsg's own Simulation page.
 MENU: list[tuple[str, list[tuple[str, str]]]] = [
     ("Control Panel", [("/", "Control Panel")]),
-    ("Settings", [("/settings/interface", "Command Interface")]),
-    ("Diagnostics", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
+    ("Settings", [("/settings/interface", "Command Interface"), ("/settings/motion", "Motion Configuration")]),
+    ("Diagnosis", [("/diagnosis/log", "System Log"), ("/diagnosis/fieldbus", "Fieldbus Monitor")]),
     ("Scripting", [("/scripting", "Scripting")]),
     ("Motion", [("/settings/motion", "Motion Configuration")]),
     ("Simulation", [("/simulation", "Simulation")]),

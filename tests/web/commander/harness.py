@@ -1,0 +1,82 @@
+"""The Commander under test: ``wsg commander``'s server on a loop thread, a ``wsg sim`` to drive, a wire tap.
+
+``Cmdr`` serves the Commander (``serve_commander``) on 127.0.0.1:0 in a background loop, as the CLI
+does; tests reach it over HTTP/WebSocket like a browser. ``WireTap`` records the bytes the sim's
+gripper is fed (TCP and serial: ``feed``; UDP: ``handle_datagram``), exactly as they arrived, so a
+test can compare them with the packet the Custom Command Editor showed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import httpx
+
+from pywsg.testing.host import LoopThread, SimThread
+from pywsg.web.commander import CommanderHandle, CommanderSession, serve_commander
+
+
+class Cmdr:
+    """A running Commander (``url``), its session, and an HTTP client with the CSRF token set."""
+
+    def __init__(self, grace: float = 0.2, host: str = "127.0.0.1", **kwargs: Any) -> None:
+        self.loop = LoopThread("commander")
+        self.session: CommanderSession = self.loop.run(self._session(grace))
+        self.handle: CommanderHandle = self.loop.run(serve_commander(host, 0, session=self.session, **kwargs))
+        self.url = f"http://127.0.0.1:{self.handle.port}"
+        self.http = httpx.Client(base_url=self.url, timeout=30.0)
+        token = self.http.get("/api/csrf").json().get("token")  # None off loopback until a login
+        if token:
+            self.http.headers["X-CSRF-Token"] = token
+
+    @staticmethod
+    async def _session(grace: float) -> CommanderSession:
+        return CommanderSession(grace=grace, timeout=3.0)
+
+    def connect(self, url: str) -> dict[str, Any]:
+        r = self.http.post("/api/connect", json={"url": url})
+        assert r.status_code == 200, r.text
+        return dict(r.json())
+
+    def state(self) -> dict[str, Any]:
+        return dict(self.http.get("/api/state").json())
+
+    def close(self) -> None:
+        try:
+            self.http.close()
+            self.loop.run(self.handle.close())
+        finally:
+            self.loop.close()
+
+    def __enter__(self) -> Cmdr:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class WireTap:
+    """Every chunk of bytes the sim's gripper 0 received, as received (TCP and serial reads, UDP datagrams)."""
+
+    def __init__(self, sim: SimThread) -> None:
+        self.chunks: list[bytes] = []
+        g = sim.gripper
+
+        def wrap(name: str) -> None:
+            original: Callable[..., Any] = getattr(g, name)
+
+            def tapped(session: Any, data: bytes) -> Any:
+                self.chunks.append(bytes(data))
+                return original(session, data)
+
+            setattr(g, name, tapped)
+
+        sim.call(lambda: (wrap("feed"), wrap("handle_datagram")))
+
+    @property
+    def data(self) -> bytes:
+        return b"".join(self.chunks)
+
+    def clear(self) -> None:
+        self.chunks.clear()
