@@ -77,7 +77,9 @@ def test_long_pipelined_writes_are_all_answered_in_order(count: int) -> None:
         assert tids == [i & 0xFFFF for i in range(count)]
         assert waits
         if count > 10_000:  # a burst long enough to tell: the UDP client is served all along, not after it
-            assert max(waits) < burst / 5, (max(waits), burst)
+            # (unserved, its one request waits the whole burst; /2, since reads became ~8x cheaper (issue 33
+            # item 13) the burst is a few seconds, and one scheduler stall of a loaded CI machine is ~1 s)
+            assert max(waits) < burst / 2, (max(waits), burst)
 
 
 def _cpu_to_answer(sim: SimThread, data: bytes, replies: int) -> float:

@@ -17,9 +17,10 @@ from profinet import IOCRSetup, ProfinetDevice, dcp
 from profinet.gsdml import load_gsdml
 from profinet.util import ethernet_socket, get_mac
 
-from pywsg.fieldbus.image import InputImage
+from pywsg.fieldbus.image import CmdFlag, InputImage, OutputImage
 from pywsg.fieldbus.plc import GrippingCycle
 from pywsg.fieldbus.profinet.exchange import ProfinetExchange, gsdml_path
+from pywsg.protocol import SystemFlag
 
 IFACE = sys.argv[1]
 
@@ -111,11 +112,71 @@ def dcp_scenario(name: str, mac: str) -> None:
     res["get_name"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
     res["set_name"] = dcp.set_param(sock, src, mac, "name", "renamed-wsg", permanent=True)
     res["found_renamed"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.mac
-    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0")
+    res["set_ip"] = dcp.set_ip(sock, src, mac, "192.168.77.9", "255.255.255.0", "0.0.0.0", permanent=True)
     res["ip_after"] = ProfinetDevice.discover("renamed-wsg", IFACE, timeout=3)._info.ip
     res["signal"] = dcp.signal_device(sock, src, mac)
-    res["reset"] = dcp.reset_to_factory(sock, src, mac)
+    time.sleep(0.3)   # profinet-py takes a queued answer with a wrong XID for its own (Signal's): a fresh socket
+    sock.close()
+    sock = ethernet_socket(IFACE, 3)
+    try:   # profinet-py's default BlockQualifier 0002h is mode 1, "reset application data" (Wireshark agrees)
+        res["reset_mode1"] = dcp.reset_to_factory(sock, src, mac)
+    except dcp.DCPError as exc:
+        res["reset_mode1"] = str(exc)
+    res["name_after_mode1"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
+    time.sleep(0.3)
+    sock.close()
+    sock = ethernet_socket(IFACE, 3)
+    res["reset"] = dcp.reset_to_factory(sock, src, mac, mode=0x0004)   # mode 2: communication parameters
     res["name_after_reset"] = (dcp.get_param(sock, src, mac, "name") or b"").decode()
+    out(**res)
+
+
+def substitute(name: str) -> None:
+    """Jog with JOG+/JOG- held, then send the same image with DataStatus ProviderState STOP (25h), then with
+    IOPS BAD, then RUN + GOOD again: the finger width at each step (issue 31 item 1)."""
+    from profinet.cyclic import IOXS_BAD, IOXS_GOOD
+
+    dev = ProfinetDevice.discover(name, IFACE, timeout=3)
+    cyc = dev.start_cyclic(setup(16))
+    status: list[int | None] = [None]   # None: profinet-py's RUN; else this DataStatus on every frame
+    send = cyc._send_output_frame
+    cyc._send_output_frame = lambda data_status=None: send(status[0] if data_status is None else data_status)
+
+    def width() -> float:
+        data = cyc.get_input_data(1, 1)
+        return InputImage.unpack(bytes(data)).width / 100 if data else float("nan")
+
+    time.sleep(0.3)
+    cyc.set_output_data(1, 1, bytes([0x08]) + bytes(7))   # HOMING, then a known position
+    time.sleep(0.5)   # homing has started
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        time.sleep(0.2)
+        data = cyc.get_input_data(1, 1)
+        img = InputImage.unpack(bytes(data)) if data else None
+        if img is not None and img.sysstate & SystemFlag.SF_REFERENCED and not img.sysstate & SystemFlag.SF_MOVING:
+            break
+    cyc.set_output_data(1, 1, bytes(8))
+    time.sleep(0.1)
+    jog = 0x40 if width() < 50 else 0x80   # JOG+ below mid-stroke, else JOG-: room to move either way
+    image = OutputImage(CmdFlag(jog), 0, 0, 2000, 0).pack()   # 20 mm/s
+    res: dict[str, Any] = {"jog": "JOG+" if jog == 0x40 else "JOG-"}
+    cyc.set_output_data(1, 1, image)
+    for phase in ("run", "stop", "iops_bad", "run_again"):
+        if phase == "stop":
+            status[0] = 0x25
+        elif phase == "iops_bad":
+            status[0] = None
+            cyc._output_builder.set_iops(1, 1, IOXS_BAD)
+        elif phase == "run_again":
+            cyc._output_builder.set_iops(1, 1, IOXS_GOOD)
+        time.sleep(0.3)   # the jog's start or deceleration, and a few cycles of the frames
+        first = width()
+        time.sleep(1.0)
+        res[phase] = [first, width()]
+    res["state"] = cyc.state.value
+    cyc.stop()
+    dev.close()
     out(**res)
 
 
@@ -143,6 +204,8 @@ def main() -> None:
         diag(args[0])
     elif scenario == "dcp":
         dcp_scenario(args[0], args[1])
+    elif scenario == "substitute":
+        substitute(args[0])
     elif scenario == "second":
         second_connect(args[0])
     else:

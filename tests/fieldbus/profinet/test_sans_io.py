@@ -193,12 +193,19 @@ def test_wrong_expected_submodule_gets_a_module_diff_and_bad_iops() -> None:
     codec.provider_ok = True
     frame = codec.input_frame(bytes(range(12)))
     assert bytes(range(12)) not in frame   # the wrong submodule's data is not sent
+    # DataStatus: 35h; StationProblemIndicator 0 (15h) while a diagnosis is pending (IEC 61158-6-10)
+    c_sdu_end = 18 + 2 + cm.io_ar.input_cr.data_length   # type: ignore[union-attr]
+    assert frame[c_sdu_end + 2] == 0x35
+    codec.station_problem = True
+    assert codec.input_frame(bytes(12))[c_sdu_end + 2] == 0x15
 
 
 def test_cycle_shorter_than_the_device_interval_is_refused() -> None:
     cm = ConnectionManager(_station(), Identity("WSG 50", "1"))
-    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=4)), "x", 1))
-    assert status == 0xDB81020B and cm.io_ar is None
+    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=1)), "x", 1))
+    assert status == 0xDB81020B and cm.io_ar is None   # 1 ms < MinDeviceInterval 64 (2 ms)
+    status, _ = _status(cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED, rr=2)), "x", 1))
+    assert status == 0 and cm.io_ar is not None
 
 
 def test_malformed_rpc_never_raises_and_retransmissions_get_the_same_answer() -> None:
@@ -269,3 +276,35 @@ def test_ip_stack_answers_arp_only_for_its_address() -> None:
     other = arp[:-1] + b"\x15"
     f = parse_frame(other)
     assert f is not None and st.handle(f) == ([], None)
+
+
+def test_disappears_alarms_say_whether_other_faults_remain() -> None:
+    """IEC 61158-6-10: a fault that goes while others stay is a Diagnosis alarm with Specifier 3
+    ("disappears, other remain"); the last one to go is AlarmType 000Ch "Diagnosis disappears", Specifier 2
+    (002 §3.3's listed flags)."""
+    cm = ConnectionManager(_station(), Identity("WSG 50", "1"))
+    cm.handle(_rpc_request(rpc.OP_CONNECT, _connect_args(REAL_EXPECTED)), "x", 1)
+    assert cm.io_ar is not None
+    ch = AlarmChannel(cm.io_ar, MAC, cm.alarm_ref)
+    SF = SystemFlag
+
+    def drained() -> list[tuple[int, int, int, bool]]:   # AlarmType, ChannelErrorType, Specifier, faults remain
+        out = []
+        while ch.queue:
+            pdu = ch.queue.popleft()
+            alarm_type, = struct.unpack_from("!H", pdu, 6)
+            spec, = struct.unpack_from("!H", pdu, 24)
+            _ch, props, error = struct.unpack_from("!HHH", pdu, 28)
+            out.append((alarm_type, error, props >> 11 & 3, bool(spec & 0x2000)))
+        return out
+
+    ch.flags(int(SF.SF_FAST_STOP | SF.SF_TEMP_FAULT))
+    assert drained() == [(1, 0x010C, 1, True), (1, 0x0005, 1, True)]
+    ch.flags(int(SF.SF_FAST_STOP))
+    assert drained() == [(1, 0x0005, 3, True)]
+    ch.flags(0)
+    assert drained() == [(0x000C, 0x010C, 2, False)]
+    ch.flags(int(SF.SF_CURR_FAULT | SF.SF_POWER_FAULT))
+    drained()
+    ch.flags(0)   # both go at once: the first "other remain", the last "disappears"
+    assert [(t, s) for t, _e, s, _r in drained()] == [(1, 3), (0x000C, 2)]

@@ -2,10 +2,11 @@
 
 The PROFINET counterpart of the PROFIBUS diagnosis message (002 §3.3 / 003 §4.2: one of the listed
 error flags rising): a Diagnosis alarm (AlarmType 0001h) for the WSG submodule (slot 1, subslot 1)
-with one ChannelDiagnosis item (USI 8000h, channel 8000h = the whole submodule), one alarm per flag: "appears" when
-it rises and "disappears" when it clears, so a controller's diagnosis buffer shows the fault and its
-end. ChannelErrorType: the standard's types where one fits (overtemperature, overload, limits),
-manufacturer types 0100h + flag bit otherwise (the GSDML's ChannelDiagList names them).
+with one ChannelDiagnosis item (USI 8000h, channel 8000h = the whole submodule), one alarm per flag:
+"appears" (Specifier 1) when it rises; when it clears, "disappears, other remain" (AlarmType 0001h,
+Specifier 3) while other listed flags stay, and "Diagnosis disappears" (AlarmType 000Ch, Specifier 2)
+for the last one, so a controller's diagnosis buffer shows each fault and its end. The items:
+:mod:`pywsg.fieldbus.profinet.diagnosis`.
 
 RTA: one DATA-RTA-PDU outstanding (window 1), retransmitted every RTATimeoutFactor × 100 ms up to
 RTARetries times; sequence numbers start at 0xFFFF and count modulo 0x8000, as profinet-py and p-net do.
@@ -19,9 +20,17 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from ...protocol import SystemFlag
 from . import blocks as b
 from .ar import API, AR, WSG_MODULE, WSG_SUBMODULE
+from .diagnosis import (
+    APPEARS,
+    DIAGNOSIS_FLAGS,
+    DISAPPEARS,
+    DISAPPEARS_OTHERS_REMAIN,
+    ERROR_TYPES,
+    USI_CHANNEL_DIAGNOSIS,
+    channel_item,
+)
 from .ether import ETH_P_PNIO
 
 log = logging.getLogger(__name__)
@@ -31,27 +40,9 @@ RTA_DATA, RTA_NACK, RTA_ACK, RTA_ERR = 1, 2, 3, 4
 WINDOW_1, TACK = 0x01, 0x10
 SEQ_INIT, SEQ_INIT_O, SEQ_MASK = 0xFFFF, 0xFFFE, 0x7FFF
 ALARM_NOTIFICATION_LOW = 0x0002
-ALARM_DIAGNOSIS = 0x0001
-USI_CHANNEL_DIAGNOSIS = 0x8000
-WHOLE_SUBMODULE = 0x8000
-APPEARS, DISAPPEARS = 1, 2
+ALARM_DIAGNOSIS, ALARM_DIAGNOSIS_DISAPPEARS = 0x0001, 0x000C
+__all__ = ["DIAGNOSIS_FLAGS", "ERROR_TYPES", "FID_ALARM_HIGH", "FID_ALARM_LOW", "AlarmChannel"]
 
-F = SystemFlag
-#: The listed error flags (002 §3.3) and their ChannelErrorType.
-ERROR_TYPES: dict[SystemFlag, int] = {
-    F.SF_SOFT_LIMIT_MINUS: 0x0008,    # lower limit value exceeded
-    F.SF_SOFT_LIMIT_PLUS: 0x0007,     # upper limit value exceeded
-    F.SF_FAST_STOP: 0x010C,
-    F.SF_TEMP_FAULT: 0x0005,          # overtemperature
-    F.SF_POWER_FAULT: 0x010F,
-    F.SF_CURR_FAULT: 0x0004,          # overload
-    F.SF_FINGER_FAULT: 0x0111,
-    F.SF_CMD_FAILURE: 0x0112,
-    F.SF_SCRIPT_FAILURE: 0x0114,
-}
-DIAGNOSIS_FLAGS = 0
-for _f in ERROR_TYPES:
-    DIAGNOSIS_FLAGS |= int(_f)
 
 
 @dataclass
@@ -84,24 +75,35 @@ class AlarmChannel:
 
     # --- diagnosis ---------------------------------------------------------------------------------
     def flags(self, sysstate: int) -> None:
-        """The current SYSSTATE: queue an alarm for listed flags that rose or cleared."""
+        """The current SYSSTATE: queue an alarm for listed flags that rose or cleared. A flag that clears
+        while others stay is a Diagnosis alarm with Specifier 3 ("disappears, other remain"); the last
+        one to clear is a "Diagnosis disappears" alarm (AlarmType 000Ch, Specifier 2)."""
         now = sysstate & DIAGNOSIS_FLAGS
         rose, cleared = now & ~self.active, self.active & ~now
+        present = self.active
+        for flag, error_type in ERROR_TYPES.items():
+            if cleared & int(flag):
+                present &= ~int(flag)
+                if present | rose:
+                    self.queue.append(self._notification(ALARM_DIAGNOSIS, error_type, DISAPPEARS_OTHERS_REMAIN,
+                                                         True))
+                else:
+                    self.queue.append(self._notification(ALARM_DIAGNOSIS_DISAPPEARS, error_type, DISAPPEARS,
+                                                         False))
+        for flag, error_type in ERROR_TYPES.items():
+            if rose & int(flag):
+                self.queue.append(self._notification(ALARM_DIAGNOSIS, error_type, APPEARS, True))
         self.active = now
-        for changed, spec in ((rose, APPEARS), (cleared, DISAPPEARS)):
-            for flag, error_type in ERROR_TYPES.items():
-                if changed & int(flag):
-                    self.queue.append(self._notification(error_type, spec))
 
-    def _notification(self, error_type: int, specifier: int) -> bytes:
+    def _notification(self, alarm_type: int, error_type: int, specifier: int, remaining: bool) -> bytes:
         """One alarm per flag: one ChannelDiagnosis item, as every controller parses it."""
-        items = struct.pack("!HHH", WHOLE_SUBMODULE, specifier << 11, error_type)
-        # AlarmSpecifier: sequence number, ChannelDiagnosis, SubmoduleDiagnosisState (a fault is still
-        # present), ARDiagnosisState (likewise)
-        spec = (self.alarm_seq & 0x7FF) | 0x0800 | (0xA000 if self.active else 0)
+        # AlarmSpecifier: sequence number, ChannelDiagnosis, SubmoduleDiagnosisState and ARDiagnosisState
+        # (a fault is still present after this alarm)
+        spec = (self.alarm_seq & 0x7FF) | 0x0800 | (0xA000 if remaining else 0)
         self.alarm_seq = (self.alarm_seq + 1) & 0x7FF
-        body = struct.pack("!HIHHIIH", ALARM_DIAGNOSIS, API, 1, 1, WSG_MODULE, WSG_SUBMODULE, spec)
-        return b.header(ALARM_NOTIFICATION_LOW, body + struct.pack("!H", USI_CHANNEL_DIAGNOSIS) + items)
+        body = struct.pack("!HIHHIIH", alarm_type, API, 1, 1, WSG_MODULE, WSG_SUBMODULE, spec)
+        return b.header(ALARM_NOTIFICATION_LOW, body + struct.pack("!H", USI_CHANNEL_DIAGNOSIS)
+                        + channel_item(error_type, specifier))
 
     # --- RTA -------------------------------------------------------------------------------------------
     def poll(self, now: float | None = None) -> list[bytes]:

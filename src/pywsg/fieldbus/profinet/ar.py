@@ -21,10 +21,12 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from . import blocks as b
+from . import diagnosis as dg
 from . import rpc
 from .im import Identity as Identity  # re-exported: ConnectionManager takes one
 from .im import IMRecords
 from .pdev import PDevRecords
+from .refusals import RefusalLog
 from .station import Station
 
 log = logging.getLogger(__name__)
@@ -34,9 +36,10 @@ DAP_MODULE, DAP_SUBMODULE, INTERFACE_SUBMODULE, PORT_SUBMODULE = 0x00000001, 0x0
 WSG_MODULE, WSG_SUBMODULE = 0x00000010, 0x00000011
 INPUT_LENGTH, OUTPUT_LENGTH = 12, 8
 #: Shortest cycle the device accepts, in 31.25 µs units (GSDML MinDeviceInterval; docs/benchmarks.md).
-MIN_DEVICE_INTERVAL = 256
+MIN_DEVICE_INTERVAL = 64
 WRITE_MULTIPLE = 0xE040
 
+NO_RECORD = b.RecordRequest(0, uuid.UUID(int=0), 0, 0, 0, 0, 0)
 # PNIOStatus: ErrorCode (DBh connect, DCh release, DDh control, DEh read, DFh write), ErrorDecode, code1, code2
 OK = 0
 
@@ -46,12 +49,18 @@ def pnio_status(code: int, decode: int, code1: int, code2: int) -> int:
 
 
 CONNECT_ERR, RELEASE_ERR, CONTROL_ERR, READ_ERR, WRITE_ERR = 0xDB, 0xDC, 0xDD, 0xDE, 0xDF
+#: PNIOStatus ErrorCode of a refused request, per operation (IEC 61158-6-10 ErrorCode: DBh Connect,
+#: DCh Release, DDh Control, DEh Read and ReadImplicit, DFh Write).
+OP_ERROR = {rpc.OP_CONNECT: CONNECT_ERR, rpc.OP_RELEASE: RELEASE_ERR, rpc.OP_READ: READ_ERR,
+            rpc.OP_WRITE: WRITE_ERR, rpc.OP_CONTROL: CONTROL_ERR, rpc.OP_READ_IMPLICIT: READ_ERR}
+OP_NAME = {rpc.OP_CONNECT: "Connect", rpc.OP_RELEASE: "Release", rpc.OP_READ: "Read", rpc.OP_WRITE: "Write",
+           rpc.OP_CONTROL: "Control", rpc.OP_READ_IMPLICIT: "ReadImplicit"}
 PNIO, PNIORW = 0x81, 0x80
 CMRPC_ARGS_LENGTH, CMRPC_UNKNOWN_BLOCKS, CMRPC_IOCR_MISSING, CMRPC_ALARM_CR, CMRPC_OUT_OF_AR, \
     CMRPC_AR_UUID_UNKNOWN, CMRPC_STATE_CONFLICT = range(7)
 # PNIORW ErrorCode1 (error class << 4 | code): invalid index, write length, invalid slot/subslot, state conflict
 RW_INVALID_INDEX, RW_WRITE_LENGTH, RW_INVALID_SLOT = 0xB0, 0xB1, 0xB2
-RW_STATE_CONFLICT, RW_INVALID_PARAMETER = 0xB5, 0xB8
+RW_STATE_CONFLICT, RW_INVALID_RANGE, RW_INVALID_PARAMETER = 0xB5, 0xB7, 0xB8
 
 
 @dataclass(frozen=True)
@@ -122,6 +131,28 @@ class RecordHandler(Protocol):
     def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None: ...
 
 
+class DiagnosisRecords:
+    """The diagnosis records (800Ah … F80Ch, :mod:`.diagnosis`): the WSG submodule's active channel
+    diagnosis from 002 §3.3's error flags in ``sysstate()`` (SYSSTATE now). A :class:`RecordHandler`."""
+
+    def __init__(self, sysstate: Callable[[], int]) -> None:
+        self.sysstate = sysstate
+
+    def read(self, req: b.RecordRequest, ar: AR | None, real: bool) -> bytes | None:
+        if req.index not in dg.RECORDS:
+            return None
+        if req.index in dg.SUBSLOT_RECORDS + dg.SLOT_RECORDS and not real:
+            return None
+        if req.index in dg.AR_RECORDS and (ar is None or (ar.is_io and not ar.wsg_ok)):
+            return None if ar is None else b""
+        if not dg.covers_wsg(req.index, req.slot, req.subslot):
+            return b""
+        return dg.diagnosis_data(API, self.sysstate())
+
+    def write(self, req: b.RecordRequest, ar: AR | None, data: bytes) -> int | None:
+        return None   # read only: the index is refused as invalid
+
+
 @dataclass
 class Listener:
     """What the device does on AR events (set by :class:`pywsg.fieldbus.profinet.device.ProfinetDevice`)."""
@@ -151,6 +182,13 @@ class ConnectionManager:
         self.records: list[RecordHandler] = [self.im, self.pdev]
         # last replies by (activity, seqnum): a retransmitted request gets the same answer, not a second action
         self._replies: dict[tuple[uuid.UUID, int], bytes] = {}
+        self.refusals = RefusalLog(log)
+        #: SYSSTATE now (the device sets it): the diagnosis records' source.
+        self.sysstate: Callable[[], int] = lambda: 0
+        self.records.append(DiagnosisRecords(lambda: self.sysstate()))
+
+    def _refused(self, op: str, why: str) -> None:
+        self.refusals.warn("PROFINET: %s refused: %s", op, why)
 
     # --- dispatch -------------------------------------------------------------------------------
     def handle(self, data: bytes, src_ip: str, sport: int) -> bytes | None:
@@ -174,13 +212,19 @@ class ConnectionManager:
         else:
             ndr = rpc.parse_ndr(body, hdr.little)
             if ndr is None:
-                status, args, maximum = pnio_status(CONNECT_ERR + min(hdr.opnum, 4), PNIO, 0x40,
-                                                    CMRPC_ARGS_LENGTH), b"", 0
+                status, args, maximum = pnio_status(OP_ERROR[hdr.opnum], PNIO, 0x40, CMRPC_ARGS_LENGTH), b"", 0
+                self._refused(OP_NAME[hdr.opnum], "NDR header does not fit the request")
             else:
                 maximum = ndr.args_maximum
                 status, args = self._operation(hdr.opnum, ndr.args, src_ip, sport)
                 if len(args) > maximum:
-                    status, args = pnio_status(READ_ERR, PNIORW, 0xB1, 0), b""
+                    # the answer does not fit the controller's buffer (ArgsMaximum): CMRPC "args length
+                    # invalid", no blocks (a cut block would lie about its length)
+                    status, args = pnio_status(OP_ERROR[hdr.opnum], PNIO, 0x40, CMRPC_ARGS_LENGTH), b""
+            if hdr.opnum == rpc.OP_WRITE and status != OK and not args:
+                # a Write answer is an IODWriteResHeader, refused or not (Wireshark: Malformed without one);
+                # for a request too broken to name its record, one with zero fields carries the status
+                args = b.write_response(NO_RECORD, status)
             reply = rpc.response(hdr, rpc.ndr_response(status, args, maximum, little=True), self.boot_time)
         if len(self._replies) >= 16:
             self._replies.pop(next(iter(self._replies)))
@@ -199,12 +243,10 @@ class ConnectionManager:
                 return self._read(args, implicit=op == rpc.OP_READ_IMPLICIT)
             return self._write(args)
         except b.BlockError as exc:
-            code = {rpc.OP_CONNECT: CONNECT_ERR, rpc.OP_RELEASE: RELEASE_ERR, rpc.OP_CONTROL: CONTROL_ERR,
-                    rpc.OP_WRITE: WRITE_ERR}.get(op, READ_ERR)
-            log.warning("PROFINET: %s refused: %s", ("Connect", "Release", "Read", "Write", "Control", "Read")[op], exc)
+            self._refused(OP_NAME[op], str(exc))
             if op == rpc.OP_CONNECT:
                 self.refused += 1
-            return pnio_status(code, PNIO, exc.code1, exc.code2), b""
+            return pnio_status(OP_ERROR[op], PNIO, exc.code1, exc.code2), b""
 
     # --- connect --------------------------------------------------------------------------------
     def _connect(self, args: bytes, src_ip: str, sport: int) -> tuple[int, bytes]:
@@ -356,6 +398,7 @@ class ConnectionManager:
         if btype != b.READ_REQ:
             return pnio_status(READ_ERR, PNIORW, RW_INVALID_PARAMETER, 0), b""
         req = b.parse_record(body)
+        ar = None
         if not implicit:
             ar = self._find(req.ar_uuid)
             if ar is None:
@@ -366,7 +409,11 @@ class ConnectionManager:
             code = RW_INVALID_SLOT if (req.slot, req.subslot) not in REAL_BY_ADDR and req.index < 0xE000 \
                 else RW_INVALID_INDEX
             return pnio_status(READ_ERR, PNIORW, code, 0), b""
-        data = data[:req.length]
+        if len(data) > req.length:
+            # the record does not fit the controller's RecordDataLength: refused whole ("access: invalid
+            # range"), never a block cut short whose length field promises more (docs/fidelity.md)
+            self._refused("Read", f"record {req.index:#06x} is {len(data)} bytes, RecordDataLength {req.length}")
+            return pnio_status(READ_ERR, PNIORW, RW_INVALID_RANGE, 0), b""
         return OK, b.read_response(req, data)
 
     def record(self, req: b.RecordRequest) -> bytes | None:
@@ -386,26 +433,29 @@ class ConnectionManager:
         if btype != b.WRITE_REQ:
             return pnio_status(WRITE_ERR, PNIORW, RW_INVALID_PARAMETER, 0), b""
         req = b.parse_record(body)
+
+        def answer(status: int) -> tuple[int, bytes]:   # a refused Write too carries its IODWriteResHeader
+            return status, b.write_response(req, status)
+
         ar = self._find(req.ar_uuid)
         if ar is None:
-            return pnio_status(WRITE_ERR, PNIO, 0x40, CMRPC_AR_UUID_UNKNOWN), b""
+            return answer(pnio_status(WRITE_ERR, PNIO, 0x40, CMRPC_AR_UUID_UNKNOWN))
         ar.last_activity = time.monotonic()
         data = args[64:64 + req.length]
         if len(data) != req.length:
-            return pnio_status(WRITE_ERR, PNIORW, RW_WRITE_LENGTH, 0), b""
+            return answer(pnio_status(WRITE_ERR, PNIORW, RW_WRITE_LENGTH, 0))
         if req.index != WRITE_MULTIPLE:
-            status = self._write_one(req, data)
-            return status, b.write_response(req, status)
+            return answer(self._write_one(req, data))
         # WriteMultiple: a sequence of write headers + data, each padded to 4 bytes
         out, off, worst = [], 0, OK
         while off + 64 <= len(data):
             sub_type, sub_len = struct.unpack_from("!HH", data, off)
             if sub_type != b.WRITE_REQ or sub_len != 60:
-                return pnio_status(WRITE_ERR, PNIORW, RW_INVALID_PARAMETER, 0), b""
+                return answer(pnio_status(WRITE_ERR, PNIORW, RW_INVALID_PARAMETER, 0))
             sub = b.parse_record(data[off + 6:off + 64])
             sub_data = data[off + 64:off + 64 + sub.length]
             if len(sub_data) != sub.length:
-                return pnio_status(WRITE_ERR, PNIORW, RW_WRITE_LENGTH, 0), b""
+                return answer(pnio_status(WRITE_ERR, PNIORW, RW_WRITE_LENGTH, 0))
             status = self._write_one(sub, sub_data)
             worst = worst or status
             out.append(b.write_response(sub, status))

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from .ether import ETH_P_PNIO, Frame, ether
+from .refusals import RefusalLog
 from .station import IpSuite, Station, ip_suite_error, name_error
 
 log = logging.getLogger(__name__)
@@ -38,6 +39,10 @@ OK, OPTION_UNSUPPORTED, SUBOPTION_UNSUPPORTED, SUBOPTION_NOT_SET, RESOURCE_ERROR
 SUPPORTED = (IP_MAC, IP_PARAMETER, DEV_TYPE, DEV_NAME, DEV_ID, DEV_ROLE, DEV_OPTIONS, DEV_INSTANCE,
              CTRL_START, CTRL_STOP, CTRL_SIGNAL, CTRL_RESPONSE, CTRL_RESET_FACTORY, CTRL_RESET_TO_FACTORY)
 ROLE_IO_DEVICE = 0x01
+#: ResetToFactory modes (BlockQualifier bits 1-15): 2 = reset communication parameters (NameOfStation, IP
+#: suite, temporary and permanent), the one the GSDML declares (ResetToFactoryModes); others are refused.
+RESET_COMMUNICATION = 2
+RESET_MODES = (RESET_COMMUNICATION,)
 #: Spacing of the identify response delay (IEC 61158-6-10: 10 ms × (address mod ResponseDelayFactor)).
 DELAY_UNIT_S = 0.010
 MAX_BLOCKS = 64   # more blocks than any real request carries: the rest of a flood frame is ignored
@@ -78,6 +83,7 @@ class DcpResponder:
         self.station = station
         self.handlers = handlers
         self.requests = 0   # DCP requests answered (for the Fieldbus Monitor)
+        self.refusals = RefusalLog(log)
 
     def handle(self, frame: Frame) -> list[tuple[float, bytes]]:
         if frame.ethertype != ETH_P_PNIO or len(frame.payload) < 12:
@@ -119,7 +125,9 @@ class DcpResponder:
         if option == ALL_SELECTOR:
             return True
         if option == DEV_NAME:
-            return value.lower() == st.name.encode().lower() and st.name != ""
+            # valid names are lowercase (IEC 61158-6-10 NameOfStation): compared as they are, so "WSG50"
+            # is another name than "wsg50", not a spelling of it
+            return value == st.name.encode() and st.name != ""
         if option == DEV_TYPE:
             return value == st.type_of_station.encode()
         if option == DEV_ID:
@@ -190,7 +198,7 @@ class DcpResponder:
             except UnicodeDecodeError:
                 return SUBOPTION_NOT_SET
             if name_error(name) is not None:
-                log.warning("DCP Set NameOfStation %r refused: %s", name, name_error(name))
+                self.refusals.warn("DCP Set NameOfStation %r refused: %s", name, name_error(name))
                 return SUBOPTION_NOT_SET
             return self.handlers.set_name(name, permanent)
         if option == IP_PARAMETER:
@@ -199,7 +207,7 @@ class DcpResponder:
             suite = IpSuite.from_raw(data)
             problem = ip_suite_error(suite.ip, suite.mask, suite.gateway)
             if problem is not None:
-                log.warning("DCP Set IP refused: %s", problem)
+                self.refusals.warn("DCP Set IP refused: %s", problem)
                 return SUBOPTION_NOT_SET
             return self.handlers.set_ip(suite, permanent)
         if option == CTRL_SIGNAL:
@@ -207,8 +215,15 @@ class DcpResponder:
             return OK
         if option in (CTRL_START, CTRL_STOP):
             return OK
-        if option in (CTRL_RESET_FACTORY, CTRL_RESET_TO_FACTORY):
-            return self.handlers.reset(qualifier >> 1)
+        if option == CTRL_RESET_FACTORY:   # the older FactoryReset suboption: the communication parameters
+            return self.handlers.reset(RESET_COMMUNICATION)
+        if option == CTRL_RESET_TO_FACTORY:
+            mode = qualifier >> 1
+            if mode not in RESET_MODES:
+                self.refusals.warn("DCP Reset to Factory mode %d refused: only mode(s) %s", mode,
+                                   ", ".join(str(m) for m in RESET_MODES))
+                return SUBOPTION_UNSUPPORTED
+            return self.handlers.reset(mode)
         return OPTION_UNSUPPORTED if option[0] not in (1, 2, 3, 5) else SUBOPTION_UNSUPPORTED
 
     @staticmethod

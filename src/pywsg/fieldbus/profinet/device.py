@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import errno
+import gc
 import logging
 import os
 import socket
@@ -31,11 +32,12 @@ from ..image import OutputImage
 from . import lldp
 from .alarm import DIAGNOSIS_FLAGS, FID_ALARM_HIGH, FID_ALARM_LOW, AlarmChannel
 from .ar import AR, ARState, ConnectionManager, Listener
-from .dcp import OK, DcpHandlers, DcpResponder
+from .cyclic import CyclicThread, attach_filter
+from .dcp import IN_OPERATION, OK, DcpHandlers, DcpResponder
 from .ether import ETH_P_IP, ETH_P_PNIO, IpStack, mac_text, parse_frame
 from .im import Identity, IMData
 from .rpc import RPC_PORT
-from .rt import CyclicCodec
+from .rt import SUBSTITUTE, CyclicCodec, OutputConsumer
 from .station import NO_IP, ORDER_ID, IpSuite, PermanentStore, Station
 
 log = logging.getLogger(__name__)
@@ -47,8 +49,9 @@ CCONTROL_PORT = 0xC001             # our UDP port for the ApplicationReady reque
 FRAMES_PER_WAKE = 64               # bounded work per readable event: a flood cannot starve the loop
 APP_READY_RETRIES, APP_READY_TIMEOUT_S = 5, 1.0
 SIGNAL_S = 3.0                     # how long the "flashing" shows after a DCP Signal
-#: Longest wait for the first output frame after Connect before the AR is aborted.
-FIRST_FRAME_S = 10.0
+#: Shortest period of the application's side of the cycle (input image, diagnosis), s: the cyclic thread
+#: sends every cycle, the image it sends is at most this old.
+APP_PERIOD_S = 0.002
 
 
 class ProfinetError(RuntimeError):
@@ -121,6 +124,7 @@ class ProfinetDevice:
         self.dcp = DcpResponder(self.station, DcpHandlers(self._set_name, self._set_ip, self._signal, self._reset))
         self.cm = ConnectionManager(self.station, _identity(gripper),
                                     Listener(self._connected, self._prm_end, self._released))
+        self.cm.sysstate = lambda: int.from_bytes(self.controller.input_bytes()[2:6], "little")
         # I&M1-4 as the settings file keeps them; a write stores them there again
         self.cm.im.data = IMData.load(self.store.data, save=lambda changed: self.store.save(**changed))
         self.port = self.cm.pdev.port
@@ -130,9 +134,10 @@ class ProfinetDevice:
         self.sock: socket.socket | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tick: asyncio.TimerHandle | None = None
+        self.rt: CyclicThread | None = None   # the AR's cyclic path (its own thread and socket)
         self._app_ready: tuple[uuid.UUID, int, AR] | None = None   # activity, tries, AR
         self._app_ready_timer: asyncio.TimerHandle | None = None
-        self._last_outputs: bytes | None = None
+        self.consumer = OutputConsumer()
         self._signal_until = 0.0
         # bus statistics (Fieldbus Monitor)
         self.frames_in = self.frames_out = self.missed = self.watchdog_expiries = 0
@@ -140,7 +145,6 @@ class ProfinetDevice:
         self.last_abort = ""
         self._last_counter: int | None = None
         self._last_frame_t = 0.0
-        self._ar_start = 0.0
         self._seq = 0
         self._diag_ready = False
         self._next = 0.0
@@ -150,6 +154,7 @@ class ProfinetDevice:
     async def start(self) -> ProfinetDevice:
         self._loop = asyncio.get_running_loop()
         self.sock = open_raw_socket(self.iface)
+        attach_filter(self.sock, cyclic=False)   # the cyclic frames are the cyclic thread's (cyclic.py)
         self._loop.add_reader(self.sock.fileno(), self._readable)
         self._house = self._loop.call_later(1.0, self._housekeeping)
         self._send_lldp()
@@ -157,6 +162,11 @@ class ProfinetDevice:
         if attach is not None:
             attach(self)
         self._check_conflict()
+        # A full garbage collection holds the GIL, and so the cyclic thread, for as long as it walks every
+        # object; what exists once the device is up lives as long as the process: freeze it, so the
+        # collections that remain are short (a 1 ms cycle is shorter than a full one).
+        gc.collect()
+        gc.freeze()
         log.info("PROFINET: %s", self.line())
         return self
 
@@ -173,6 +183,7 @@ class ProfinetDevice:
     async def close(self) -> None:
         if self.cm.io_ar is not None:
             self.cm.drop(self.cm.io_ar, "device stopped")
+        self._stop_rt()
         if self._tick is not None:
             self._tick.cancel()
         if self._app_ready_timer is not None:
@@ -207,6 +218,11 @@ class ProfinetDevice:
             rows["Controller"] = f"{ar.request.station_name} {ar.controller_ip} ({mac_text(ar.controller_mac)})"
             rows["Cycle time"] = f"{ar.output_cr.cycle_s * 1000:g} ms"
         rows["Frames in / out"] = f"{self.frames_in} / {self.frames_out}"
+        if ar is not None and self.consumer.substituting:
+            rows["Outputs"] = f"substitute values (zero image): {self.consumer.substituting}"
+        if self.rt is not None:
+            rows["Cyclic path"] = (f"input frames at most {self.rt.late_max * 1000:.1f} ms late, output frames at "
+                                   f"most {self.rt.gap_max * 1000:.1f} ms apart")
         rows["Missed frames"] = str(self.missed)
         rows["Watchdog expiries"] = str(self.watchdog_expiries)
         if self.alarms is not None and self.alarms.sent:
@@ -263,7 +279,7 @@ class ProfinetDevice:
                     if self.alarms is not None:
                         for reply in self.alarms.handle(frame.payload[2:]):
                             self._send(reply)
-                else:
+                elif self.rt is None:   # a device not started (tests): the loop takes the frame itself
                     self._output_frame(frame.payload)
             return
         if frame.ethertype == lldp.ETH_P_LLDP:
@@ -293,16 +309,26 @@ class ProfinetDevice:
                 if done is True and ar is self.cm.io_ar:
                     self._app_ready = None
                     ar.state = ARState.DATA
+                    ar.last_activity = time.monotonic()
                     log.info("PROFINET: ApplicationReady confirmed by %s: data exchange", ar.controller_ip)
                 elif done is False:
                     self._abort(ar, "the controller refused ApplicationReady")
 
     def _output_frame(self, payload: bytes) -> None:
+        """An output frame (after the EtherType), taken and applied at once (the cyclic thread splits the two)."""
+        image = self._consume(payload)
+        if image is not None:
+            self._apply(image)
+
+    def _consume(self, payload: bytes) -> bytes | None:
+        """Bus statistics and the consumer rule for one output frame: the image to apply, or None. Runs on the
+        cyclic thread (it touches only counters and the codec, never the gripper)."""
         codec = self.codec
-        assert codec is not None
+        if codec is None:
+            return None
         out = codec.output(payload)
         if out is None:
-            return
+            return None
         self.frames_in += 1
         self._last_frame_t = time.monotonic()
         if self._last_counter is not None:
@@ -311,9 +337,20 @@ class ProfinetDevice:
             if gap > step and step:
                 self.missed += gap // step - 1
         self._last_counter = out.cycle_counter
-        if out.outputs is not None and out.outputs != self._last_outputs:
-            self._last_outputs = out.outputs
-            self.controller.write_outputs(OutputImage.unpack(out.outputs))
+        was = self.consumer.substituting
+        image = self.consumer.take(out)
+        if self.consumer.substituting != was:
+            if self.consumer.substituting:
+                log.warning("PROFINET: the controller's outputs are not valid (%s): substitute values, a zero "
+                            "output image", self.consumer.substituting)
+            else:
+                log.info("PROFINET: the controller's outputs are valid again (RUN, IOPS GOOD)")
+        return image
+
+    def _apply(self, image: bytes) -> None:
+        """Hand an output image to the application (on the loop)."""
+        if self.codec is not None:   # not after the AR ended: its fail-safe image stands
+            self.controller.write_outputs(OutputImage.unpack(image))
 
     def _send(self, frame: bytes) -> None:
         if self.sock is None:
@@ -369,7 +406,7 @@ class ProfinetDevice:
     def _set_name(self, name: str, permanent: bool) -> int:
         if self.cm.io_ar is not None and name != self.station.name:
             log.warning("PROFINET: DCP Set NameOfStation refused: an AR is established")
-            return 6   # "in operation"
+            return IN_OPERATION
         self.station.name = name
         if permanent:
             self.store.save(profinet_name=name)
@@ -380,7 +417,7 @@ class ProfinetDevice:
     def _set_ip(self, suite: IpSuite, permanent: bool) -> int:
         if self.cm.io_ar is not None and suite != self.station.ip:
             log.warning("PROFINET: DCP Set IP refused: an AR is established")
-            return 6
+            return IN_OPERATION
         self.station.ip = suite
         self.ipstack.ip = suite.ip
         self._check_conflict()
@@ -397,14 +434,19 @@ class ProfinetDevice:
         self._syslog("PROFINET: DCP Signal: the LED flashes (identify this gripper)")
 
     def _reset(self, mode: int) -> int:
+        """ResetToFactory mode 2 (reset communication parameters): NameOfStation and IP suite, the running
+        ones and the stored ones. Refused while an IO AR runs, like a Set (docs/fidelity.md "DCP during an AR")."""
         if self.cm.io_ar is not None:
-            self._abort(self.cm.io_ar, "reset to factory by DCP")
+            log.warning("PROFINET: DCP Reset to Factory refused: an AR is established")
+            return IN_OPERATION
         self.station.name = ""
         self.station.ip = IpSuite()
         self.ipstack.ip = NO_IP
         self.store.save(profinet_name="")
+        self.store.forget("ip_address", "netmask", "gateway")
         self._announce()
-        self._syslog(f"PROFINET: reset to factory settings (mode {mode}): station name and IP cleared")
+        self._syslog(f"PROFINET: reset to factory settings (mode {mode}, communication parameters): station name "
+                     f"and IP cleared, also in the settings file")
         return OK
 
     def _syslog(self, text: str) -> None:
@@ -424,16 +466,31 @@ class ProfinetDevice:
         self._diag_ready = False
         self.ar_count += 1
         self._last_counter = None
-        self._last_outputs = None
-        self._ar_start = time.monotonic()
+        self.consumer = OutputConsumer()
         self._last_frame_t = 0.0
         self._syslog(f"PROFINET: connected to {ar.request.station_name} at {ar.controller_ip}")
         self.cm.pdev.logbook.add(ar.uuid.bytes)
-        if self._loop is not None:
+        self._stop_rt()
+        if self._loop is not None and self.sock is not None:
+            codec, loop = self.codec, self._loop
+            assert ar.input_cr is not None
+            try:
+                self.rt = CyclicThread(
+                    self.iface, ar.controller_mac, ar.output_frame_id, ar.input_cr.cycle_s,
+                    build=codec.input_frame, consume=self._consume,
+                    judge=lambda now: self._supervise(ar, codec, now), post=loop.call_soon_threadsafe,
+                    apply=self._apply, expired=lambda why: self._expired(ar, why), sent=self._sent)
+            except OSError as exc:
+                self.rt = None
+                log.warning("PROFINET: no socket for the cyclic thread (%s)", exc)
+                self._abort(ar, f"cannot start the cyclic path: {exc}")
+                return
+            self.rt.inputs = self._input_bytes()
+            self.rt.start()
             if self._tick is not None:
                 self._tick.cancel()
-            self._next = self._loop.time()
-            self._tick = self._loop.call_at(self._next, self._cycle)
+            self._next = loop.time()
+            self._tick = loop.call_at(self._next, self._cycle)
 
     def _prm_end(self, ar: AR) -> None:
         if self.codec is not None and ar is self.codec.ar:
@@ -467,6 +524,7 @@ class ProfinetDevice:
         if self.codec is not None and ar is self.codec.ar:
             self.codec = None
             self.alarms = None
+            self._stop_rt()
             if self._tick is not None:
                 self._tick.cancel()
                 self._tick = None
@@ -477,6 +535,11 @@ class ProfinetDevice:
             self._syslog(f"PROFINET: AR of {ar.controller_ip} ended: {why}")
             if why != "released by the controller":
                 self._fail_safe(why)
+            elif self.consumer.applied not in (None, SUBSTITUTE):
+                # a Release is no lost master (no FAST STOP), but its outputs end with the AR: substitute
+                # values, as for ProviderState STOP (a JOG level must not outlive the AR)
+                self.controller.write_outputs(OutputImage.unpack(SUBSTITUTE))
+            self.consumer = OutputConsumer()
 
     def _abort(self, ar: AR, why: str) -> None:
         self.cm.drop(ar, why)
@@ -489,48 +552,70 @@ class ProfinetDevice:
             log.warning("PROFINET: controller lost (%s); no fail_safe on this FieldbusController", reason)
 
     # --- cyclic -----------------------------------------------------------------------------------------
-    def _cycle(self) -> None:
-        codec, loop = self.codec, self._loop
-        if codec is None or loop is None:
-            return
-        ar = codec.ar
-        self._readable()   # frames that waited while the loop was busy count before the watchdog judges
-        if self.codec is not codec:
-            return
-        now = time.monotonic()
-        out_cr = codec.out_cr
-        if self._last_frame_t:
-            hold = out_cr.data_hold_factor * out_cr.cycle_s
-            if now - self._last_frame_t > hold:
-                self.watchdog_expiries += 1
-                self._abort(ar, f"watchdog: no output frame for {(now - self._last_frame_t) * 1000:.0f} ms "
-                                f"(data hold time {hold * 1000:g} ms)")
-                return
-        elif now - self._ar_start > max(FIRST_FRAME_S, ar.request.timeout_factor * 0.1):
+    def _stop_rt(self) -> None:
+        if self.rt is not None:
+            self.rt.stop()
+            self.rt = None
+
+    def _sent(self) -> None:
+        self.frames_out += 1
+
+    def _expired(self, ar: AR, why: str) -> None:
+        """The cyclic thread's verdict (on the loop): the AR ends."""
+        if ar is self.cm.io_ar:
             self.watchdog_expiries += 1
-            self._abort(ar, "no output frame from the controller after Connect")
-            return
+            self._abort(ar, why)
+
+    def _input_bytes(self) -> bytes:
         try:
-            inputs = self.controller.input_bytes()
+            return self.controller.input_bytes()
         except Exception:
             log.exception("PROFINET: input image")
-            inputs = bytes(12)
-        self._send(codec.input_frame(inputs))
-        self.frames_out += 1
+            return bytes(12)
+
+    def _cycle(self) -> None:
+        """The application's side of the cycle, on the loop: a fresh input image for the cyclic thread to
+        send, and the diagnosis alarms; every cycle, at most every :data:`APP_PERIOD_S`."""
+        codec, loop, rt = self.codec, self._loop, self.rt
+        if codec is None or loop is None or rt is None:
+            return
+        inputs = self._input_bytes()
+        rt.inputs = inputs
         if self.alarms is not None:
-            self._diagnosis(ar, inputs)
-        cycle = codec.in_cr.cycle_s
-        self._next += cycle
+            self._diagnosis(codec.ar, inputs)
+        period = max(codec.in_cr.cycle_s, APP_PERIOD_S)
+        self._next += period
         t = loop.time()
-        if self._next < t - cycle:   # fell behind (a long pause): restart the schedule, do not burst
-            self._next = t + cycle
+        if self._next < t - period:   # fell behind (a long pause): restart the schedule, do not burst
+            self._next = t + period
         self._tick = loop.call_at(self._next, self._cycle)
+
+    def _supervise(self, ar: AR, codec: CyclicCodec, now: float) -> str:
+        """Why the AR must end now ("" while it may go on). Parameterization (Connect to PrmEnd) is
+        supervised by the controller's CMInitiatorActivityTimeout (ARBlockReq, factor × 100 ms) since its
+        last RPC for this AR; data exchange by the data hold time once output frames flow, and until the first
+        one by the activity timeout again (docs/fidelity.md "Startup supervision")."""
+        activity = ar.request.timeout_factor * 0.1
+        if ar.state == ARState.PARAMETERIZING and now - ar.last_activity > activity:
+            return (f"no PrmEnd within the CMInitiatorActivityTimeout ({activity:g} s) after the controller's "
+                    f"last request")
+        if self._last_frame_t:
+            out_cr = codec.out_cr
+            hold = out_cr.data_hold_factor * out_cr.cycle_s
+            if now - self._last_frame_t > hold:
+                return (f"watchdog: no output frame for {(now - self._last_frame_t) * 1000:.0f} ms "
+                        f"(data hold time {hold * 1000:g} ms)")
+        elif ar.state == ARState.DATA and now - ar.last_activity > activity:
+            return f"no output frame from the controller within the CMInitiatorActivityTimeout ({activity:g} s)"
+        return ""
 
     def _diagnosis(self, ar: AR, inputs: bytes) -> None:
         """Diagnosis alarms for listed error flags rising or clearing (002 §3.3), once data exchange runs."""
         alarms = self.alarms
         assert alarms is not None
         sysstate = int.from_bytes(inputs[2:6], "little")
+        if self.codec is not None:   # the next input frame's StationProblemIndicator: a diagnosis is pending
+            self.codec.station_problem = bool(sysstate & DIAGNOSIS_FLAGS)
         if not self._diag_ready:
             if ar.state != ARState.DATA:
                 return

@@ -15,10 +15,14 @@ from .ar import AR, INPUT_LENGTH, OUTPUT_LENGTH
 from .ether import ETH_P_PNIO, ether
 
 IOXS_GOOD, IOXS_BAD = 0x80, 0x00
-# DataStatus bits
+# DataStatus bits: State (primary), DataValid, ProviderState (1 RUN, 0 STOP), StationProblemIndicator
+# (1 normal operation, 0 a problem: pending diagnosis)
 DS_PRIMARY, DS_VALID, DS_RUN, DS_STATION_OK = 0x01, 0x04, 0x10, 0x20
 DS_DEVICE = DS_PRIMARY | DS_VALID | DS_RUN | DS_STATION_OK   # 35h
 WSG = (1, 1)
+#: The substitute values the device uses for the WSG's outputs while the controller's are not valid
+#: (ProviderState STOP, DataValid 0 or IOPS BAD): a zero output image (docs/fidelity.md "Substitute values").
+SUBSTITUTE = bytes(OUTPUT_LENGTH)
 
 
 @dataclass
@@ -28,6 +32,7 @@ class OutputData:
     cycle_counter: int
     data_status: int
     outputs: bytes | None     # the 8 output bytes, None when IOPS or DataStatus say they are not valid
+    why: str = ""             # why not valid ("" when valid)
 
 
 class CyclicCodec:
@@ -51,6 +56,7 @@ class CyclicCodec:
             length = exp.input_length if exp else 0
             self._iops_offsets.append((o.offset + length, (o.slot, o.subslot) in ar.proper))
         self.provider_ok = False   # IOPS GOOD only once the application is ready
+        self.station_problem = False   # a diagnosis is pending: DataStatus.StationProblemIndicator 0
         self.header = ether(ar.controller_mac, mac, ETH_P_PNIO, b"", tag=True)[:18]
 
     def input_frame(self, inputs: bytes) -> bytes:
@@ -65,7 +71,8 @@ class CyclicCodec:
             c[self._wsg_in:self._wsg_in + INPUT_LENGTH] = inputs[:INPUT_LENGTH]
         self.cycle_counter = (self.cycle_counter + self.step) & 0xFFFF
         frame = (self.header + struct.pack("!H", self.ar.input_frame_id) + bytes(c)
-                 + struct.pack("!HBB", self.cycle_counter, DS_DEVICE, 0))
+                 + struct.pack("!HBB", self.cycle_counter,
+                               DS_DEVICE & ~DS_STATION_OK if self.station_problem else DS_DEVICE, 0))
         return frame + bytes(max(0, 64 - len(frame)))
 
     def output(self, payload: bytes) -> OutputData | None:
@@ -74,12 +81,47 @@ class CyclicCodec:
         if len(payload) < 2 + n + 4 or int.from_bytes(payload[:2], "big") != self.ar.output_frame_id:
             return None
         counter, status, transfer = struct.unpack_from("!HBB", payload, 2 + n)
-        outputs = None
-        valid = status & DS_VALID and status & DS_RUN and transfer == 0
         off = self._wsg_out
-        if valid and off is not None and payload[2 + off + OUTPUT_LENGTH] & IOXS_GOOD:
-            outputs = payload[2 + off:2 + off + OUTPUT_LENGTH]
-        return OutputData(counter, status, outputs)
+        if not status & DS_RUN:
+            why = f"ProviderState STOP (DataStatus {status:#04x})"
+        elif not status & DS_VALID:
+            why = f"DataValid 0 (DataStatus {status:#04x})"
+        elif transfer:
+            why = f"TransferStatus {transfer:#04x}"
+        elif off is None:
+            why = "no proper WSG submodule in this AR"
+        elif not payload[2 + off + OUTPUT_LENGTH] & IOXS_GOOD:
+            why = f"IOPS BAD ({payload[2 + off + OUTPUT_LENGTH]:#04x})"
+        else:
+            return OutputData(counter, status, payload[2 + off:2 + off + OUTPUT_LENGTH])
+        return OutputData(counter, status, None, why)
+
+
+class OutputConsumer:
+    """The consumer's rule for the WSG's output data (IEC 61158-6-10 ProviderState / IOPS): valid
+    outputs are used as they come; outputs the controller marks not valid (ProviderState STOP,
+    DataValid 0, IOPS BAD) are replaced by :data:`SUBSTITUTE`, so a level (JOG+/JOG-) drops and no edge
+    fires. Back to RUN with GOOD data, the first valid image is judged against the substitute image
+    (a command bit still raised is a new edge)."""
+
+    def __init__(self) -> None:
+        self.applied: bytes | None = None   # the image last handed to the application
+        self.substituting = ""              # why substitute values are in use ("" when not)
+
+    def take(self, out: OutputData) -> bytes | None:
+        """The output image the application must apply now, or None when it is unchanged."""
+        image = out.outputs
+        if image is None:
+            self.substituting = out.why
+            if self.applied is None:   # no valid outputs yet in this AR: nothing of the controller's to drop
+                return None
+            image = SUBSTITUTE
+        else:
+            self.substituting = ""
+        if image == self.applied:
+            return None
+        self.applied = image
+        return image
 
 
 def is_output_cr(ar: AR) -> bool:

@@ -137,9 +137,21 @@ class PermanentStore:
         suite = IpSuite(ip, mask, gw if isinstance(gw, str) and gw else NO_IP)
         return suite if ip_suite_error(suite.ip, suite.mask, suite.gateway) is None else None
 
+    def forget(self, *keys: str) -> None:
+        """Remove ``keys`` from the file (Reset to Factory: the permanent IP suite must not come back)."""
+        self.save()
+        for key in keys:
+            self.data.pop(key, None)
+        self._write()
+
     def save(self, **values: Any) -> None:
         """Merge ``values`` into the file as it is now (the web interface writes it too) and write it
         atomically (keeps keys others own)."""
+        self._reload()
+        self.data.update(values)
+        self._write()
+
+    def _reload(self) -> None:
         if self.path is not None and self.path.exists():
             try:
                 current = json.loads(self.path.read_text(encoding="utf-8"))
@@ -147,7 +159,8 @@ class PermanentStore:
                     self.data = current
             except (OSError, ValueError):
                 pass
-        self.data.update(values)
+
+    def _write(self) -> None:
         if self.path is None:
             return
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=self.path.name, suffix=".tmp")
