@@ -404,7 +404,7 @@ async def drive_realtime(runner: ScenarioRunner, clock: Callable[[], float]) -> 
                 try:
                     await asyncio.wait_for(wake.wait(), delay)
                     continue  # something earlier was queued
-                except TimeoutError:
+                except asyncio.TimeoutError:  # before Python 3.11 not the builtin TimeoutError (same class since)
                     pass
             now = clock()
             runner.run_due(now)

@@ -153,7 +153,7 @@ class ServedApp:
         with contextlib.suppress(asyncio.CancelledError):
             try:
                 await asyncio.wait_for(asyncio.shield(self._task), timeout=5.0)
-            except TimeoutError:
+            except asyncio.TimeoutError:  # before Python 3.11 not the builtin TimeoutError
                 self._task.cancel()
 
 
