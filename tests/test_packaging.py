@@ -86,11 +86,19 @@ def test_project_urls_are_absent_or_real() -> None:
         assert not any(bad in host for bad in ("example", "pypi.org", "localhost", "TODO", "your")), url
 
 
-def test_readme_images_survive_on_the_package_index() -> None:
-    """The package index shows README.md on its own: relative images vanish there."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text) + re.findall(r"<img[^>]+src=\"([^\"]+)\"", text)
-    assert all(re.match(r"https?://", src) for src in images), images
+def _images(text: str) -> list[str]:
+    return re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text) + re.findall(r"<img[^>]+src=\"([^\"]+)\"", text)
+
+
+def test_the_index_page_has_no_image_that_would_vanish_and_the_readmes_exist() -> None:
+    """The package index shows the long description on its own: relative images vanish there, so it is
+    docs/package-description.md (no images); README.md's screenshots are files of the repository."""
+    meta = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    page = re.search(r'^readme = "([^"]+)"', meta, re.M)
+    assert page is not None and page.group(1) == "docs/package-description.md"
+    assert all(re.match(r"https?://", src) for src in _images((ROOT / page.group(1)).read_text(encoding="utf-8")))
+    readme = _images((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert readme and all((ROOT / src).is_file() for src in readme), readme
 
 
 def test_code_and_tests_cite_the_manuals_not_notes_outside_the_repository() -> None:
