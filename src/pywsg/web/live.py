@@ -36,13 +36,7 @@ def router(ctx: WebContext) -> APIRouter:
     @r.websocket("/ws")
     async def live(websocket: WebSocket) -> None:
         """~20 Hz: state, new log entries, new command results, and (``?fieldbus=1``) the registers."""
-        s = ctx.auth.lookup(websocket.cookies.get(COOKIE_NAME))
-        if not ctx.auth.may_read(s) or not same_origin(websocket):
-            await websocket.close(code=1008)
-            return
-        await websocket.accept()
-        if ctx.live_clients >= MAX_LIVE_CLIENTS:
-            await websocket.close(code=1013, reason="too many live clients")  # try again later
+        if not await accept_live(websocket, ctx.auth, ctx.live_clients >= MAX_LIVE_CLIENTS, "too many live clients"):
             return
         ctx.live_clients += 1
         q = websocket.query_params
@@ -75,6 +69,20 @@ def router(ctx: WebContext) -> APIRouter:
                 await websocket.close()
 
     return r
+
+
+async def accept_live(websocket: WebSocket, auth: Any, full: bool, reason: str) -> bool:
+    """Accept a page's live WebSocket: a session that may read, from this origin (else close 1008), and
+    room for one more (``full``: close 1013 with ``reason``, try again later). True when accepted."""
+    s = auth.lookup(websocket.cookies.get(COOKIE_NAME))
+    if not auth.may_read(s) or not same_origin(websocket):
+        await websocket.close(code=1008)
+        return False
+    await websocket.accept()
+    if full:
+        await websocket.close(code=1013, reason=reason)
+        return False
+    return True
 
 
 async def _wait_closed(websocket: WebSocket) -> None:

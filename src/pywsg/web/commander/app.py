@@ -34,11 +34,10 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from ... import __version__
 from .. import auth
 from ..app import STATIC, ServedApp, serve_app
-from ..auth import same_origin
 from ..context import error
-from ..live import _int, _wait_closed  # the web interface's WebSocket helpers
+from ..live import _int, _wait_closed, accept_live  # the web interface's WebSocket helpers
 from ..pages import template
-from ..security import COOKIE_NAME, Auth, WebSession, is_loopback_host
+from ..security import Auth, WebSession, is_loopback_host
 from .commands import catalog_json
 from .export import to_jsonl, to_pcapng
 from .session import CommandError, CommanderSession, preview
@@ -184,13 +183,7 @@ def router(ctx: CommanderContext) -> APIRouter:
 
     @r.websocket("/ws")
     async def live(websocket: WebSocket) -> None:
-        s = ctx.auth.lookup(websocket.cookies.get(COOKIE_NAME))
-        if not ctx.auth.may_read(s) or not same_origin(websocket):
-            await websocket.close(code=1008)
-            return
-        await websocket.accept()
-        if session.pages >= MAX_PAGES:
-            await websocket.close(code=1013, reason="too many Commander pages")
+        if not await accept_live(websocket, ctx.auth, session.pages >= MAX_PAGES, "too many Commander pages"):
             return
         session.page_opened()
         closed = asyncio.create_task(_wait_closed(websocket))
