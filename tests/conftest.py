@@ -31,6 +31,12 @@ settings.register_profile("ci", deadline=None, derandomize=True, database=None, 
 settings.register_profile("dev", deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
+# scripts/test.sh runs the other Pythons' suites as background jobs, and bash starts those with SIGINT ignored;
+# an ignored signal stays ignored across exec, so a spawned `wsg` would shrug off the Ctrl-C the signal tests
+# send. The suite restores the default for itself and what it spawns.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 def kill_tree(proc: psutil.Process | subprocess.Popen[Any], grace: float = 5.0) -> None:
     """SIGTERM ``proc`` and its children, SIGKILL what is still alive after ``grace`` seconds."""
