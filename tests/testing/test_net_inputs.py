@@ -9,6 +9,7 @@ from __future__ import annotations
 import http.client
 import json
 import socket
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -28,7 +29,9 @@ BAD_BODIES = [
     pytest.param('{"kind": "latency", "ms": "1_0"}', "ms", id="string-1_0"),
     pytest.param('{"kind": "latency", "ms": " 5 "}', "ms", id="string-space-5"),
     pytest.param('{"kind": "bandwidth", "rate": 1e400}', "rate", id="1e400"),
-    pytest.param('{"kind": "latency", "ms": ' + "[" * 1500 + "]" * 1500 + "}", "_", id="1500-deep"),
+    # Python 3.11/3.12 refuse the nesting itself ("_": not JSON); 3.13 parses it, and ms is then not a number
+    pytest.param('{"kind": "latency", "ms": ' + "[" * 1500 + "]" * 1500 + "}",
+                 "_" if sys.version_info < (3, 13) else "ms", id="1500-deep"),
 ]
 
 
