@@ -243,9 +243,10 @@ def target(sim_factory: Callable[..., SimThread]) -> SimThread:
 
 
 @pytest.mark.parametrize("name, pattern, second, cpu_ratio", [
-    ("forged 1 KiB headers", FORGED_1K, False, 1.0),  # before: 18 x the baseline
-    ("forged 1 KiB headers from a refused second client", FORGED_1K, True, 1.0),
-    ("forged 1 KiB headers with a stray AAh", b"\xaa" + FORGED_1K, False, 1.0),
+    # forged headers: before 18 x the baseline; now ~1 x, so 1.5 leaves room for a loaded machine's noise
+    ("forged 1 KiB headers", FORGED_1K, False, 1.5),
+    ("forged 1 KiB headers from a refused second client", FORGED_1K, True, 1.5),
+    ("forged 1 KiB headers with a stray AAh", b"\xaa" + FORGED_1K, False, 1.5),
     ("SIZE too large", b"\xaa\xaa\xaa\x20\xff\xff", False, 1.0),  # before: 1.6 x
     # 116,510 complete frames, each answered (000 §1.2.2) like the baseline's 116,510 requests
     ("complete frames with bad CRCs", loop_frame(b"x")[:-2] + b"\x00\x00", False, 2.0),
