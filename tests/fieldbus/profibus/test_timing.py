@@ -109,8 +109,12 @@ def test_a_shrunk_watchdog_expires_at_its_new_time(line: tuple[str, str], loop: 
         spent = _wait(lambda: lt.call(lambda: ad.slave.state) is DpState.WAIT_PRM, 5.0)
         assert spent < 2.5, f"still in Data_Exch {spent:.2f} s after a 100 ms watchdog (the old one was 5 s)"
         assert ad.slave.stats.watchdog_expiries == 1
-        flags = lt.call(lambda: ad.controller.input_bytes())
-        assert int.from_bytes(flags[2:6], "little") & SystemFlag.SF_FAST_STOP
+        # the FAST STOP reaches the input image at the gripper's next poll, a moment after the state change
+        def fast_stop() -> bool:
+            flags = lt.call(lambda: ad.controller.input_bytes())
+            return bool(int.from_bytes(flags[2:6], "little") & SystemFlag.SF_FAST_STOP)
+
+        assert _wait(fast_stop, 10.0) < 10.0, "no FAST STOP in the input image after the watchdog expired"
         assert "watchdog expired" in ad.bus_state()["Interface state"]
 
 
