@@ -4,9 +4,9 @@
 # tests; socat for serial lines with a real port's code path; axe-core from npm for the accessibility check), then lint, types (also for Python 3.10), the
 # package build (python -m build + twine check, in tests/test_packaging.py) and pytest in parallel
 # (pytest-xdist). Extra arguments go to pytest; without any, the fieldbus tests also run on the oldest
-# supported pymodbus, and the suite (all but the browser tests) on the oldest and the newest supported Python
-# (scripts/other-python.sh; the versions are the lowest and highest "Programming Language :: Python :: 3.X"
-# classifiers of pyproject.toml), beside the main run.
+# supported pymodbus (beside the main run), and then the suite (all but the browser and container tests) on the
+# oldest and the newest supported Python (scripts/other-python.sh; the versions are the lowest and highest
+# "Programming Language :: Python :: 3.X" classifiers of pyproject.toml).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
@@ -78,20 +78,25 @@ if [ $# -eq 0 ]; then
     PYTHONPATH="$target" .venv/bin/python -m pytest -q -p no:cacheprovider -n 2 --dist load -m pymodbus \
         >.venv/pytest-oldest-pymodbus.log 2>&1 &
     old_pid=$!
-    # The oldest and the newest supported Python run the suite but its browser tests beside the main run
-    # (the browser tests drive pages, not the interpreter; they run once, on the default Python).
+fi
+echo "== pytest ($WORKERS workers)"
+status=0
+.venv/bin/python -m pytest -q "${XDIST[@]}" --durations=20 "$@" || status=$?
+if [ $# -eq 0 ]; then
+    # Then the oldest and the newest supported Python run the suite but its browser and container tests (those
+    # drive pages and the image's own Python; they run once, on the default Python), the two side by side. After
+    # the main run, not beside it: the PROFINET wire tests' controller misses its cycle when five test
+    # sessions share the 2 cores.
     mapfile -t pys < <(sed -n 's/^ *"Programming Language :: Python :: \(3\.[0-9]*\)".*/\1/p' pyproject.toml | sort -t. -k2,2n)
     [ ${#pys[@]} -ge 2 ] || { echo "no Python version classifiers in pyproject.toml" >&2; exit 1; }
     for v in "${pys[0]}" "${pys[-1]}"; do
         [ "$v" = "$(.venv/bin/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')" ] && continue
+        echo "== the suite on Python $v starts (scripts/other-python.sh; log: .venv/pytest-py$v.log)"
         bash scripts/other-python.sh "$v" -n 2 --dist loadfile -m "not browser and not container" >".venv/pytest-py$v.log" 2>&1 &
         py_pids+=("$!")
         py_vers+=("$v")
     done
 fi
-echo "== pytest ($WORKERS workers)"
-status=0
-.venv/bin/python -m pytest -q "${XDIST[@]}" --durations=20 "$@" || status=$?
 if [ -n "$old_pid" ]; then
     old_status=0
     wait "$old_pid" || old_status=$?
@@ -104,7 +109,7 @@ for i in "${!py_pids[@]}"; do
     v=${py_vers[$i]}
     py_status=0
     wait "${py_pids[$i]}" || py_status=$?
-    echo "== the suite but its browser tests, on Python $v (scripts/other-python.sh; run beside the main run)"
+    echo "== the suite but its browser and container tests, on Python $v (scripts/other-python.sh)"
     if [ "$py_status" -eq 3 ]; then
         # no interpreter: say so loudly; fail only where every version is required
         cat ".venv/pytest-py$v.log"
