@@ -25,7 +25,8 @@ class Cmdr:
         self.session: CommanderSession = self.loop.run(self._session(grace))
         self.handle: CommanderHandle = self.loop.run(serve_commander(host, 0, session=self.session, **kwargs))
         self.url = f"http://127.0.0.1:{self.handle.port}"
-        self.http = httpx.Client(base_url=self.url, timeout=30.0)
+        self.http = httpx.Client(base_url=self.url, timeout=30.0,
+                                 transport=_Diagnosed(self.loop, httpx.HTTPTransport()))
         token = self.http.get("/api/csrf").json().get("token")  # None off loopback until a login
         if token:
             self.http.headers["X-CSRF-Token"] = token
@@ -54,6 +55,43 @@ class Cmdr:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def loop_report(lt: LoopThread) -> str:
+    """What the loop thread is doing: its thread's stack and every task's stack (a hung request's report)."""
+    import asyncio
+    import io
+    import sys
+    import traceback
+
+    out = io.StringIO()
+    frame = sys._current_frames().get(lt._thread.ident or -1)
+    out.write("loop thread stack:\n" + "".join(traceback.format_stack(frame)) if frame else "no loop thread\n")
+    try:  # read from this thread while the loop runs: good enough for a failure report
+        tasks = list(asyncio.all_tasks(lt.loop))
+    except RuntimeError as exc:
+        tasks = []
+        out.write(f"tasks not listed: {exc}\n")
+    for task in tasks:
+        out.write(f"\n{task!r}\n")
+        task.print_stack(limit=12, file=out)
+    return out.getvalue()
+
+
+class _Diagnosed(httpx.BaseTransport):
+    """httpx's transport; a request that times out fails with what the Commander's loop was doing."""
+
+    def __init__(self, lt: LoopThread, inner: httpx.BaseTransport) -> None:
+        self.lt, self.inner = lt, inner
+
+    def handle_request(self, request: httpx.Request) -> httpx.Response:
+        try:
+            return self.inner.handle_request(request)
+        except httpx.TimeoutException as exc:
+            raise AssertionError(f"{request.method} {request.url.path}: {exc}\n{loop_report(self.lt)}") from exc
+
+    def close(self) -> None:
+        self.inner.close()
 
 
 class WireTap:

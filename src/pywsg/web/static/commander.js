@@ -6,7 +6,6 @@
 (function () {
   const $ = function (id) { return document.getElementById(id); };
   let csrf = document.querySelector('meta[name="csrf-token"]').content;
-  const TIMEOUT_MS = 8000;
   const MAX_ROWS = 1000;  // log lines kept on the page (the server keeps more; the saved files have them)
   const AUTO_UPDATE = new Set([0x40, 0x41, 0x43, 0x44, 0x45]);
   let connected = false;
@@ -19,21 +18,8 @@
     b.hidden = !text;
   }
 
-  async function request(method, url, body) {
-    const opts = { method, headers: { "X-CSRF-Token": csrf }, credentials: "same-origin" };
-    if (body !== undefined) { opts.headers["Content-Type"] = "application/json"; opts.body = JSON.stringify(body); }
-    const abort = new AbortController();
-    const timer = setTimeout(function () { abort.abort(); }, TIMEOUT_MS);
-    opts.signal = abort.signal;
-    try {
-      const resp = await fetch(url, opts);
-      let data = null;
-      try { data = await resp.json(); } catch (e) { data = { detail: resp.statusText }; }
-      return { status: resp.status, ok: resp.ok, data: data || {} };
-    } catch (e) {
-      const why = e && e.name === "AbortError" ? "no answer within " + TIMEOUT_MS / 1000 + " s" : "no connection";
-      return { status: 0, ok: false, data: { detail: "not sent: " + why + " to the Commander (is wsg commander running?)" } };
-    } finally { clearTimeout(timer); }
+  function request(method, url, body) {
+    return window.wsgRequest(method, url, body, csrf, "the Commander (is wsg commander running?)");
   }
   async function api(method, url, body) {
     let r = await request(method, url, body);

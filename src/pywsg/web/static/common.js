@@ -10,7 +10,6 @@
     finals: {},  // command name -> newest final result {seq, status} seen on the WebSocket
   };
   window.WSG = WSG;
-  const TIMEOUT_MS = 8000;  // a command that gets no answer in this time fails with a message
 
   // -- history across page changes: the last 30 s of width/force and the last command results ---------
   // Every page records them from the live updates; sessionStorage carries them to the next page (per
@@ -56,26 +55,8 @@
   }
   WSG.renewToken = renewToken;
 
-  async function request(method, url, body) {
-    const opts = { method, headers: { "X-CSRF-Token": WSG.csrf }, credentials: "same-origin" };
-    if (body !== undefined) {
-      opts.headers["Content-Type"] = "application/json";
-      opts.body = JSON.stringify(body);
-    }
-    const abort = new AbortController();
-    const timer = setTimeout(function () { abort.abort(); }, TIMEOUT_MS);
-    opts.signal = abort.signal;
-    try {
-      const resp = await fetch(url, opts);
-      let data = null;
-      try { data = await resp.json(); } catch (e) { data = { detail: resp.statusText }; }
-      return { status: resp.status, ok: resp.ok, data: data || {} };
-    } catch (e) {
-      const why = e && e.name === "AbortError" ? "no answer within " + TIMEOUT_MS / 1000 + " s" : "no connection";
-      return { status: 0, ok: false, data: { detail: "not sent: " + why + " to the gripper (is the simulator running?)" } };
-    } finally {
-      clearTimeout(timer);
-    }
+  function request(method, url, body) {
+    return window.wsgRequest(method, url, body, WSG.csrf, "the gripper (is the simulator running?)");
   }
 
   // Every request of the page: a refused CSRF token is renewed once and the request repeated, so
