@@ -43,7 +43,7 @@ async def test_plc_demo_three_cycles_with_a_part(sim: SimServer) -> None:
     sim.grippers[0].gripper.faults.place_part(22.0)
     rc, out = await _plc_demo(sim.modbus_port or 0, "--cycles", "3")
     assert rc == 0, out
-    assert "done: 3 cycle(s), 3 part(s) held, 0 without part, 0 error recovery(ies)" in out
+    assert "done: 3 cycles, 3 parts held, 0 without part, 0 error recoveries" in out
     for step in ("step  0 ->  1", "step  6 ->  7", "step  7 ->  8", "step 10 -> 11"):
         assert step in out
     snap = sim.grippers[0].gripper.snapshot()
@@ -57,7 +57,7 @@ async def test_plc_demo_recovers_from_an_injected_fast_stop(sim: SimServer) -> N
     assert rc == 0, out
     assert "injected fault: FASTSTOP" in out
     assert "-> -1" in out and "step -1 ->  0" in out          # error state, STOP/ACK, re-homing
-    assert "done: 3 cycle(s)" in out and ", 1 error recovery(ies)" in out
+    assert "done: 3 cycles" in out and ", 1 error recovery" in out
     snap = sim.grippers[0].gripper.snapshot()
     assert not snap.fast_stop and snap.referenced
 

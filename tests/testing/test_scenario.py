@@ -114,7 +114,7 @@ def test_plc_demo_loses_the_part_in_cycle_3(sim_proc: type[SimProc]) -> None:
     # on its normal path (issue 24 item 2), no FAST STOP from a parameter change while the fingers move
     assert "step  7 ->  8: release: wait for RELEASING, reset RELEASE  [PART_LOST, E_SUCCESS]" in r.stdout
     done = r.stdout.strip().splitlines()[-1]
-    assert done == "done: 3 cycle(s), 3 part(s) held, 0 without part, 0 error recovery(ies)", done
+    assert done == "done: 3 cycles, 3 parts held, 0 without part, 0 error recoveries", done
     sim.wait_for("part removed (remove_part 0.5 s after HOLDING (occurrence 3))")
 
 
@@ -136,6 +136,6 @@ def test_plc_demo_recovers_from_the_scenario_fast_stop(sim_proc: type[SimProc]) 
     assert r.returncode == 0, r.stdout + r.stderr
     sim.wait_for("power")  # the fault did strike during the run (t = 5 s; six cycles take about 9 s)
     done = r.stdout.strip().splitlines()[-1]
-    assert done.startswith("done: 6 cycle(s)") and "timed out" not in done, r.stdout[-3000:]
+    assert done.startswith("done: 6 cycles") and "timed out" not in done, r.stdout[-3000:]
     recoveries = re.search(r"(\d+) error recovery", done)
     assert recoveries is not None and int(recoveries.group(1)) > 0, done  # "270 …" contains "0 error recovery"

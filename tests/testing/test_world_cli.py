@@ -81,7 +81,7 @@ def test_sim_part_at_start_makes_the_plc_demo_hold_parts(sim_proc: type[SimProc]
     sim = sim_proc("--part", "20", modbus=True)
     r = wsg("plc-demo", "--url", f"modbus-tcp://127.0.0.1:{sim.modbus_port}", "--cycles", "3", timeout=90)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "3 part(s) held, 0 without part" in r.stdout
+    assert "3 parts held, 0 without part" in r.stdout
 
 
 def test_sim_block_at_start(sim_proc: type[SimProc]) -> None:

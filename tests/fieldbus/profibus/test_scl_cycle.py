@@ -54,7 +54,7 @@ def test_wsg_plc_demo_url_profibus(pb_sim: SimThread) -> None:
     proc = subprocess.run([WSG, "plc-demo", "--url", f"profibus://{ad.path}?address=7&baudrate=19200&watchdog_ms=1000",
                            "--cycles", "1", "--timeout", "30"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "done: 1 cycle(s), 1 part(s) held, 0 without part, 0 error recovery(ies)" in proc.stdout
+    assert "done: 1 cycle, 1 part held, 0 without part, 0 error recoveries" in proc.stdout
     assert proc.stdout.strip().endswith(
         "PROFIBUS master offline: slave 7's watchdog puts the gripper in fail-safe after 1000 ms "
         "(FAST STOP, outputs zero); the next master acknowledges it with STOP/ACK")
