@@ -7,10 +7,14 @@ import json
 import shutil
 import signal
 import subprocess
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
+from pywsg.protocol import Status, encode_frame
 
 from .conftest import Sim, run_wsg
 
@@ -84,21 +88,41 @@ def test_send_no_gripper_exits_3() -> None:
 def test_decode_a_live_capture(homed: Sim, tmp_path: Path) -> None:
     sim = homed
     cap = tmp_path / "live.pcapng"
-    dump = subprocess.Popen(["dumpcap", "-q", "-i", "lo", "-f", f"tcp port {sim.tcp_port}", "-w", str(cap)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 8
-    while time.monotonic() < deadline and not (cap.exists() and cap.stat().st_size > 0):
-        if dump.poll() is not None:
-            pytest.skip(f"dumpcap cannot capture here: {dump.stderr.read().decode() if dump.stderr else ''}")
-        time.sleep(0.05)
-    time.sleep(0.3)  # the file header comes just before capturing starts
+    # dumpcap writes to a pipe packet by packet (to a file it buffers): the test reads what it wrote so far,
+    # so it knows when the last frames are in the capture instead of guessing a pause
+    dump = subprocess.Popen(["dumpcap", "-q", "-i", "lo", "-f", f"tcp port {sim.tcp_port}", "-w", "-"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    got = bytearray()
+
+    def pump() -> None:
+        assert dump.stdout is not None
+        while chunk := dump.stdout.read1(65536):
+            got.extend(chunk)
+
+    reader = threading.Thread(target=pump, daemon=True)
+    reader.start()
+
+    def wait_until(cond: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + 30
+        while not cond():
+            if dump.poll() is not None and not got:
+                pytest.skip(f"dumpcap cannot capture here: {dump.stderr.read().decode() if dump.stderr else ''}")
+            assert time.monotonic() < deadline, f"dumpcap: {what} not written within 30 s"
+            time.sleep(0.02)
+
+    wait_until(lambda: len(got) > 0, "the file header")  # written once capturing has started
+    unknown_reply = encode_frame(0x90, int(Status.E_CMD_UNKNOWN).to_bytes(2, "little"))
     try:
         assert sim.wsg("move", "40", "--speed", "400").code == 0
         assert sim.wsg("send", "0x90").code == 1
+        # the last frames: the 90h reply, then that connection's 07h
+        wait_until(lambda: unknown_reply in got and encode_frame(0x07) in got[got.find(unknown_reply):],
+                   "the 90h reply and the 07h after it")
     finally:
-        time.sleep(0.3)
         dump.send_signal(signal.SIGINT)
         dump.wait(10)
+        reader.join(10)
+    cap.write_bytes(bytes(got))
     r = run_wsg("decode", "--json", "--port", str(sim.tcp_port), "-f", str(cap))
     assert r.code == 0, r
     frames = json.loads(r.out)
