@@ -4,6 +4,7 @@ and `wsg decode -f` of a live capture of that traffic made with dumpcap/tshark."
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -96,7 +97,7 @@ def test_decode_a_live_capture(homed: Sim, tmp_path: Path) -> None:
 
     def pump() -> None:
         assert dump.stdout is not None
-        while chunk := dump.stdout.read1(65536):
+        while chunk := os.read(dump.stdout.fileno(), 65536):
             got.extend(chunk)
 
     reader = threading.Thread(target=pump, daemon=True)
