@@ -19,7 +19,8 @@ cleanup() {
 trap cleanup EXIT
 "$WSG" sim --tcp-port "$port" --udp-port off --serial off --web-port off > "$tmp/sim.log" 2>&1 &
 sim=$!
-dumpcap -q -i lo -f "tcp port $port" -w "$tmp/cap.pcapng" 2> "$tmp/dumpcap.log" &
+# to stdout, dumpcap writes each packet at once (to a file it buffers): the file shows what is captured
+dumpcap -q -i lo -f "tcp port $port" -w - > "$tmp/cap.pcapng" 2> "$tmp/dumpcap.log" &
 dump=$!
 for _ in $(seq 100); do     # both ready: the sim printed its banner, dumpcap wrote its file header
     if grep -q TCP "$tmp/sim.log" && [ -s "$tmp/cap.pcapng" ]; then break; fi
@@ -32,7 +33,19 @@ url="tcp://127.0.0.1:$port"
 "$WSG" --url "$url" move 40 --speed 400 > /dev/null
 "$WSG" --url "$url" width > /dev/null
 "$WSG" --url "$url" send 0x90 > /dev/null || true     # exit 1: the gripper answers E_CMD_UNKNOWN
-sleep 0.3
+# stop dumpcap once the last frames are written: the 90h reply (E_CMD_UNKNOWN) and the 07h after it
+"$PY" - "$tmp/cap.pcapng" <<'PY' || { echo "dumpcap did not capture the session's last frames within 30 s" >&2; exit 1; }
+import sys, time
+from pywsg.protocol import Status, encode_frame
+reply, bye = encode_frame(0x90, int(Status.E_CMD_UNKNOWN).to_bytes(2, "little")), encode_frame(0x07)
+deadline = time.monotonic() + 30
+while time.monotonic() < deadline:
+    data = open(sys.argv[1], "rb").read()
+    if reply in data and bye in data[data.find(reply):]:
+        sys.exit(0)
+    time.sleep(0.05)
+sys.exit(1)
+PY
 kill -INT "$dump"; wait "$dump" || true; dump=""
 mkdir -p "$(dirname "$out")"
 cp "$tmp/cap.pcapng" "$out"
