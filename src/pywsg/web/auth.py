@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import ipaddress
 import logging
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Iterable
 from html import escape
 from string import Template
 from typing import Protocol
@@ -23,7 +23,7 @@ from urllib.parse import parse_qs, quote, urlsplit
 
 from fastapi import APIRouter, FastAPI, HTTPException, Request, WebSocket
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
-from starlette.datastructures import Headers
+from starlette.datastructures import Headers, MutableHeaders
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -137,56 +137,84 @@ class HasAuth(Protocol):
     auth: Auth
 
 
-def install_guard(app: FastAPI, ctx: HasAuth, *, bound: str | None = None,
-                  allowed_hosts: Iterable[str] = ()) -> None:
-    """The host check, the body limit, the session/permission/CSRF middleware and the headers."""
-    # Starlette runs the middleware added last first: HostCheck, the guard, then BodyLimit (inside
-    # the guard, so that its 413 reaches the route's exception handling and not the guard's task group)
-    app.add_middleware(BodyLimit, limit=MAX_BODY)
+class Guard:
+    """The session, permission and CSRF check of every HTTP request, and the headers of every answer.
 
-    @app.middleware("http")
-    async def _guard(request: Request, call_next: Callable[[Request], Awaitable[Response]]) -> Response:
-        s = ctx.auth.lookup(request.cookies.get(COOKIE_NAME))
+    A plain ASGI middleware, not Starlette's ``BaseHTTPMiddleware``: that one runs the route in a task
+    of its own and streams the answer back through a memory stream, and on a loaded machine an answer
+    the route had finished now and then never left it (a Commander request hung until the client's
+    30 s timeout). Here the route writes its answer straight through, headers added on the way.
+    """
+
+    def __init__(self, app: ASGIApp, ctx: HasAuth) -> None:
+        self.app = app
+        self.ctx = ctx
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        auth = self.ctx.auth
+        request = Request(scope, receive)
+        s = auth.lookup(request.cookies.get(COOKIE_NAME))
         fresh = s is None
         if s is None:
-            s = ctx.auth.create()
-        request.state.websession = s
-        response = await _check(request, s, call_next)
-        current: WebSession = request.state.websession
-        if fresh or current is not s:
-            # Secure under TLS; on plain http a Secure cookie would never come back from another host
-            response.set_cookie(COOKIE_NAME, current.id, httponly=True, samesite="strict", path="/",
-                                secure=request.url.scheme == "https")
-        response.headers.setdefault("X-Frame-Options", "DENY")
-        response.headers.setdefault("X-Content-Type-Options", "nosniff")
-        response.headers.setdefault("Content-Security-Policy", CSP)
-        return response
+            s = auth.create()
+        state = scope.setdefault("state", {})
+        state["websession"] = s  # request.state.websession in the routes (login replaces it)
 
-    async def _check(request: Request, s: WebSession,
-                     call_next: Callable[[Request], Awaitable[Response]]) -> Response:
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = MutableHeaders(scope=message)
+                current: WebSession = state["websession"]
+                if fresh or current is not s:
+                    # Secure under TLS; on plain http a Secure cookie would never come back from another host
+                    cookie = Response()
+                    cookie.set_cookie(COOKIE_NAME, current.id, httponly=True, samesite="strict", path="/",
+                                      secure=request.url.scheme == "https")
+                    headers.append("set-cookie", cookie.headers["set-cookie"])
+                headers.setdefault("X-Frame-Options", "DENY")
+                headers.setdefault("X-Content-Type-Options", "nosniff")
+                headers.setdefault("Content-Security-Policy", CSP)
+            await send(message)
+
+        refusal = self._refusal(request, s)
+        await (refusal or self.app)(scope, receive, send_with_headers)
+
+    def _refusal(self, request: Request, s: WebSession) -> Response | None:
+        """The answer to a request the route must not see, or None to let it through."""
+        auth = self.ctx.auth
         path = request.url.path
         if path.startswith(world_api.PREFIX):  # scripts, not browsers: own access rules
-            return world_api.guard(request, ctx.auth) or await call_next(request)
+            return world_api.guard(request, auth)
         public = path.startswith("/static/") or path in ("/login", health.PATH)
-        if not public and not ctx.auth.may_read(s):
+        if not public and not auth.may_read(s):
             if path.startswith("/api/") or request.method not in SAFE_METHODS:
                 return error(401, "login required")
             return RedirectResponse("/login?next=" + quote(path), status_code=303)
         if request.method in SAFE_METHODS:
-            return await call_next(request)
+            return None
         length = request.headers.get("content-length")
         if length is not None and (not length.isdigit() or int(length) > MAX_BODY):
             return error(413, f"request body larger than {MAX_BODY} bytes")
         if not same_origin(request):
             return error(403, "cross-origin request refused")
         if path in ("/login", "/logout"):  # form posts: token checked by the handler
-            return await call_next(request)
-        if not ctx.auth.may_write(s):
+            return None
+        if not auth.may_write(s):
             return error(401, "login required to change the gripper")
-        if not ctx.auth.csrf_ok(s, request.headers.get(CSRF_HEADER)):
+        if not auth.csrf_ok(s, request.headers.get(CSRF_HEADER)):
             return error(403, f"missing or wrong CSRF token (send the {CSRF_HEADER} header)")
-        return await call_next(request)
+        return None
 
+
+def install_guard(app: FastAPI, ctx: HasAuth, *, bound: str | None = None,
+                  allowed_hosts: Iterable[str] = ()) -> None:
+    """The host check, the body limit, the session/permission/CSRF guard and the headers."""
+    # Starlette runs the middleware added last first: HostCheck, the guard, then BodyLimit (inside
+    # the guard, so that its 413 reaches the route's exception handling)
+    app.add_middleware(BodyLimit, limit=MAX_BODY)
+    app.add_middleware(Guard, ctx=ctx)
     app.add_middleware(HostCheck, bound=bound, allowed_hosts=tuple(allowed_hosts))  # outermost
 
 

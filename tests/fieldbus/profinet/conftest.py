@@ -100,7 +100,7 @@ class Wire:
 
     def controller(self, *args: str, timeout: float = 60.0, argv: list[str] | None = None) -> dict[str, object]:
         """Run one scenario of pn_controller.py (or ``argv``) in the controller namespace; its last stdout
-        line (JSON)."""
+        line (JSON), with the JSON lines before it as ``stdout`` and the end of its stderr as ``stderr``."""
         p = self.popen(self.controller_ns, argv or [sys.executable, str(CONTROLLER), self.iface, *args])
         try:
             out, err = p.communicate(timeout=timeout)
@@ -112,6 +112,8 @@ class Wire:
         why = f"controller {args or argv} exited {p.returncode}:\n{out[-2000:]}\n{err[-3000:]}"
         assert (p.returncode == 0 or argv) and lines, why
         result: dict[str, object] = json.loads(lines[-1])
+        # what the controller printed and logged before: for an assertion's message when one fails
+        result["stdout"], result["stderr"] = "\n".join(lines[-40:-1]), err[-3000:]
         return result
 
     def socket_in(self, ns: str, family: int, kind: int, proto: int = 0) -> socket.socket:

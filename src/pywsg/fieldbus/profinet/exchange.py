@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import importlib.resources
 import logging
+import time
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -78,6 +79,10 @@ def gsdml_path() -> Any:
     return importlib.resources.files("pywsg.fieldbus.descriptions").joinpath(GSDML_NAME)
 
 
+SETTLE_FRAMES = 2
+"""Input frames a write waits for after the output frame that carried it (:meth:`ProfinetExchange.write_outputs`)."""
+
+
 class ProfinetExchange:
     """An ``ImageExchange`` over one PROFINET AR: ``read_inputs()`` (12 bytes), ``write_outputs(8 bytes)``."""
 
@@ -120,23 +125,41 @@ class ProfinetExchange:
         return cls(u, device, cyclic)
 
     async def read_inputs(self) -> bytes:
+        """The 12 input bytes of the device's newest valid frame. Right after connect (the device's IOPS
+        still BAD) or while it sends none, wait for one, up to the URL's ``timeout`` s: a zero image
+        would read as a gripper that is not IDLE and send the PLC program into its error branch."""
         data = self._cyclic.get_input_data(WSG_SLOT, WSG_SUBSLOT)
-        if data is None:
+        if data is not None:
+            return bytes(data)
+        deadline = time.monotonic() + self.url.timeout
+        while data is None:
             if not self._cyclic.is_running:
                 raise FieldbusConnectionError(f"PROFINET AR with {self.url.station!r} lost")
-            # no valid input frame yet (IOPS still BAD right after connect): wait one cycle
+            if time.monotonic() > deadline:
+                raise FieldbusConnectionError(f"PROFINET: no valid input data from {self.url.station!r} within "
+                                              f"{self.url.timeout:g} s (IOPS BAD)")
             await asyncio.sleep(self.url.cycle_ms / 1000)
             data = self._cyclic.get_input_data(WSG_SLOT, WSG_SUBSLOT)
-            if data is None:
-                return bytes(12)
         return bytes(data)
 
     async def write_outputs(self, data: bytes) -> None:
         if len(data) != 8:
             raise ValueError(f"the output image is 8 bytes, got {len(data)}")
+        stats = self._cyclic.stats
+        sent = stats.frames_sent
         self._cyclic.set_output_data(WSG_SLOT, WSG_SUBSLOT, bytes(data))
-        # the next output frame carries it: give it one cycle so a read after a write sees the effect
-        await asyncio.sleep(self.url.cycle_ms / 1000)
+        # So that a read after a write sees the device's answer to it (a command flag set and reset before
+        # the device acted would be lost, or a stale IDLE taken for "done"): wait for the output frame that
+        # carries the write, then SETTLE_FRAMES input frames (the device applies outputs and refreshes its
+        # inputs on its own cycle); at most the URL's timeout, if the controller's thread stalls.
+        step = self.url.cycle_ms / 4000
+        deadline = time.monotonic() + self.url.timeout
+        while stats.frames_sent <= sent and time.monotonic() < deadline and self._cyclic.is_running:
+            await asyncio.sleep(step)
+        received = stats.frames_received
+        while (stats.frames_received < received + SETTLE_FRAMES and time.monotonic() < deadline
+               and self._cyclic.is_running):
+            await asyncio.sleep(step)
 
     async def close(self) -> None:
         def stop() -> None:
