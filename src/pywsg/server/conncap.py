@@ -313,6 +313,7 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
 
         _requests = 0
         _spent = False
+        _last: Any = None  # the budget's last request, while its body comes in
         _rate_key = ""
 
         def data_received(self, data: bytes) -> None:
@@ -339,9 +340,17 @@ def capped_http_protocol(limit: int, idle_timeout: float | None = None,
                 return
             super().on_headers_complete()
             if budget is not None and self._requests >= budget:
-                self._spent = True
                 if self.cycle is not before:
                     self.cycle.keep_alive = False  # answered with Connection: close, then closed
+                    self._last = self.cycle  # its body may still come in: dropping starts after it
+                else:
+                    self._spent = True
+
+        def on_message_complete(self) -> None:
+            super().on_message_complete()
+            if self._last is not None and self.cycle is self._last:
+                self._last = None
+                self._spent = True  # the budget's last request is whole: what follows is dropped
 
         def _refuse(self, limiter: RequestRate, wait: float, before: Any) -> None:
             """Over the client's rate: a short 429 instead of the app, in order after the answers

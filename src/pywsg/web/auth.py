@@ -140,10 +140,9 @@ class HasAuth(Protocol):
 class Guard:
     """The session, permission and CSRF check of every HTTP request, and the headers of every answer.
 
-    A plain ASGI middleware, not Starlette's ``BaseHTTPMiddleware``: that one runs the route in a task
-    of its own and streams the answer back through a memory stream, and on a loaded machine an answer
-    the route had finished now and then never left it (a Commander request hung until the client's
-    30 s timeout). Here the route writes its answer straight through, headers added on the way.
+    A plain ASGI middleware rather than Starlette's ``BaseHTTPMiddleware`` (which runs each route in a
+    task of its own and streams its answer back through a memory stream): the route's answer goes
+    straight through, the headers added on the way.
     """
 
     def __init__(self, app: ASGIApp, ctx: HasAuth) -> None:

@@ -93,7 +93,8 @@ def test_profinet_py_finds_reads_connects_and_runs_the_scl_cycle(wire: Wire, tmp
         assert diag["alarms"] == [{"type": 1, "slot": 1, "subslot": 1, "items": [[0x010C, 1]]},
                                   {"type": 0x0C, "slot": 1, "subslot": 1, "items": [[0x010C, 2]]}], diag
     except AssertionError as exc:   # the device's log says why (an AR ended by a stalled controller, ...)
-        raise AssertionError(f"{exc}\nsim log:\n{sim.stop()[-4000:]}\nplc-demo's log:\n{done.get('stdout')}\n{done.get('stderr')}\n"
+        raise AssertionError(f"{exc}\nsim log:\n{sim.stop()[-4000:]}\n"
+                             f"plc-demo's log:\n{done.get('stdout')}\n{done.get('stderr')}\n"
                              f"diag controller's log:\n{diag.get('stderr')}") from None
     cap.stop()
     err = sim.stop()
