@@ -214,6 +214,13 @@ class ProfibusExchange:
                 self._inflight = self._seq if data[4:12] == self._outputs else self._seq - 1
 
     @property
+    def read_timeout(self) -> float:
+        """Seconds :meth:`read_inputs` waits by default: twice the slave's watchdog, at least 3 s. A slow
+        moment of the master (pyprofibus retries a telegram after its own short timeout) is not a lost
+        slave; one silent for that long has gone fail-safe by its watchdog anyway."""
+        return max(3.0, 2 * self.url.watchdog_ms / 1000)
+
+    @property
     def cycles(self) -> int:
         """Data_Exchange cycles completed."""
         return self._cycles
@@ -226,9 +233,12 @@ class ProfibusExchange:
             self._outputs = bytes(data)
             self._seq += 1
 
-    async def read_inputs(self, timeout: float = 1.0) -> bytes:
-        """The 12 input bytes answering a Data_Exchange that carried the last written outputs
-        (``timeout`` in s)."""
+    async def read_inputs(self, timeout: float | None = None) -> bytes:
+        """The 12 input bytes answering a Data_Exchange that carried the last written outputs.
+
+        ``timeout`` (s; None: :attr:`read_timeout`) bounds the wait before the slave counts as lost."""
+        if timeout is None:
+            timeout = self.read_timeout
         deadline = time.monotonic() + timeout
         with self._lock:
             want = self._seq
