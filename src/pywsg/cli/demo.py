@@ -21,7 +21,7 @@ import click
 from ..client import AsyncGripper
 from ..errors import WsgError
 from ..protocol import GripperState
-from .runner import EXIT_CONNECTION, PORT
+from .runner import EXIT_CONNECTION, PORT, count
 
 
 @click.command()
@@ -151,8 +151,7 @@ async def _cycles(url: str, cycles: int, part: float, open_width: float, speed: 
                 _say(as_json, "part", "  (the part is taken away)")
                 await step(f"back to start ({start:g} mm)", g.move(start, speed))
             stats = await g.statistics()
-            grips = f"{stats.total} grip" + ("" if stats.total == 1 else "s")
-            _say(as_json, "statistics", f"gripping statistics: {grips}, {stats.no_part} no part, "
+            _say(as_json, "statistics", f"gripping statistics: {count(stats.total, 'grip')}, {stats.no_part} no part, "
                  f"{stats.lost_part} lost", total=stats.total, no_part=stats.no_part, lost_part=stats.lost_part)
         except WsgError as exc:
             _say(as_json, "error", f"error: {exc}", error=str(exc))

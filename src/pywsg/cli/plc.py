@@ -25,7 +25,7 @@ from ..fieldbus.exchange import SCHEMES, URL_FORMS, FieldbusConnectionError, sch
 from ..fieldbus.image import CmdFlag, OutputImage
 from ..fieldbus.plc import AsyncFieldbusGripper, GrippingCycle
 from ..protocol import GState
-from .runner import EXIT_CONNECTION
+from .runner import EXIT_CONNECTION, count
 
 
 @dataclass
@@ -81,8 +81,8 @@ async def run_demo(url: str, cycles: int = 3, *, scan: float = 0.002, timeout: f
     hint = None if completed or inputs is None else cyc.fast_stop_hint(inputs)
     if hint:
         echo(f"stuck in {hint}")
-    echo(f"done: {_count(cyc.cycles, 'cycle')}, {_count(cyc.holds, 'part')} held, {cyc.no_part} without part, "
-         f"{_count(cyc.error_count, 'error recovery', 'error recoveries')}"
+    echo(f"done: {count(cyc.cycles, 'cycle')}, {count(cyc.holds, 'part')} held, {cyc.no_part} without part, "
+         f"{count(cyc.error_count, 'error recovery', 'error recoveries')}"
          + ("" if completed else f" — timed out after {timeout:g} s"))
     if scheme_of(url) == "profibus":   # the master went offline: say what the slave does now
         from ..fieldbus.profibus.master import offline_note
@@ -102,11 +102,6 @@ async def _local_sim(model: str, part_width: float | None) -> AsyncIterator[str]
             gripper.faults.place_part(part_width)
         assert sim.modbus_port is not None
         yield f"modbus-tcp://127.0.0.1:{sim.modbus_port}"
-
-
-def _count(n: int, one: str, many: str | None = None) -> str:
-    """``1 cycle``, ``3 cycles``: the summary line reads as English."""
-    return f"{n} {one if n == 1 else (many or one + 's')}"
 
 
 def _connection_message(exc: OSError, where: str) -> str:

@@ -120,6 +120,11 @@ HELD_BY_ANOTHER = ("another client holds this gripper's TCP command interface (o
                    "docs/sim.md): close that program (or its `wsg monitor`), or use the UDP interface")
 
 
+def count(n: int, one: str, many: str | None = None) -> str:
+    """``1 cycle``, ``3 cycles``: a number and its noun as English (``many``: an irregular plural)."""
+    return f"{n} {one if n == 1 else (many or one + 's')}"
+
+
 def cli_hint(text: str) -> str:
     """``text`` with the driver's Python hints replaced by the `wsg` commands that do the same."""
     for python, cli in CLI_HINTS.items():

@@ -20,6 +20,7 @@ import asyncio
 import importlib.resources
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -152,13 +153,15 @@ class ProfinetExchange:
         # the device acted would be lost, or a stale IDLE taken for "done"): wait for the output frame that
         # carries the write, then SETTLE_FRAMES input frames (the device applies outputs and refreshes its
         # inputs on its own cycle); at most the URL's timeout, if the controller's thread stalls.
-        step = self.url.cycle_ms / 4000
         deadline = time.monotonic() + self.url.timeout
-        while stats.frames_sent <= sent and time.monotonic() < deadline and self._cyclic.is_running:
-            await asyncio.sleep(step)
+        await self._until(lambda: stats.frames_sent > sent, deadline)
         received = stats.frames_received
-        while (stats.frames_received < received + SETTLE_FRAMES and time.monotonic() < deadline
-               and self._cyclic.is_running):
+        await self._until(lambda: stats.frames_received >= received + SETTLE_FRAMES, deadline)
+
+    async def _until(self, done: Callable[[], bool], deadline: float) -> None:
+        """Poll ``done()`` every quarter cycle until it holds, the AR ends or ``deadline`` (monotonic s) passes."""
+        step = self.url.cycle_ms / 4000
+        while not done() and self._cyclic.is_running and time.monotonic() < deadline:
             await asyncio.sleep(step)
 
     async def close(self) -> None:
